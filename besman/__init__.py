@@ -1,0 +1,11 @@
+"""besman: robots learn reusable manipulation skills and run them as behaviour trees.
+
+The subpackages follow the BESMAN learning platform (Metzen et al., "Towards Learning of Generic Skills for
+Robotic Manipulation", KI 2014): ``besman.skills`` (movement primitives, skill templates),
+``besman.learning`` (from demonstrations to templates), ``besman.robots`` (models and kinematics),
+``besman.sim`` (worlds, rollouts, execution) and ``besman.trees`` (behaviour trees).
+"""
+
+from besman._version import __version__
+
+__all__ = ["__version__"]

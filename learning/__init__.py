@@ -1,0 +1,1 @@
+"""Learning: demonstrations, preprocessing, segmentation, labelling, imitation, policy search, templates."""

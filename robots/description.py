@@ -1,0 +1,140 @@
+"""Robot descriptions: what a MuJoCo model alone does not say about a robot.
+
+An MJCF file knows joints, ranges and actuators, but not which joints form an arm, how fast they may move, or
+which site is the arm's end effector. Each robot folder therefore carries a ``description.json`` beside its
+model::
+
+    {
+      "schema_version": 1,
+      "name": "aila",
+      "model": "scene.xml",
+      "keyframe": "home",
+      "groups": {"right_arm": {"joints": ["J_Shoulder1_r", ...], "site": "right_grasp"}, ...},
+      "limits": {"J_Shoulder1_r": {"velocity": 1.5, "acceleration": 4.0, "jerk": 40.0}, ...}
+    }
+
+Position limits are not repeated here: they are read from the compiled model (``jnt_range``), so the model
+stays the single source of truth for them. Velocity, acceleration and jerk limits are in joint units per
+second (rad/s or m/s, and so on); the README of each robot says where every number comes from.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+SCHEMA_VERSION = 1
+
+
+class DescriptionError(ValueError):
+    """A robot description file is malformed; the message names the file and the field."""
+
+
+@dataclass(frozen=True)
+class JointLimitSpec:
+    """Velocity, acceleration and jerk limits of one joint (absolute values, joint units per s^k)."""
+
+    velocity: float
+    acceleration: float
+    jerk: float
+
+
+@dataclass(frozen=True)
+class GroupSpec:
+    """A named set of joints (in order), its end-effector site and the equalities that belong to it."""
+
+    name: str
+    joints: tuple[str, ...]
+    site: str | None
+    equalities: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """The parsed ``description.json`` of one robot."""
+
+    name: str
+    title: str
+    model_file: Path
+    keyframe: str
+    groups: dict[str, GroupSpec]
+    limits: dict[str, JointLimitSpec]
+
+
+def _require(mapping: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    if key not in mapping:
+        raise DescriptionError(f"{where}: missing field {key!r}")
+    value = mapping[key]
+    if not isinstance(value, kind) or isinstance(value, bool):
+        expected = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
+        raise DescriptionError(f"{where}.{key}: expected {expected}, got {value!r}")
+    return value
+
+
+def _string_list(value: Any, where: str) -> tuple[str, ...]:
+    if not isinstance(value, list) or not all(isinstance(item, str) for item in value):
+        raise DescriptionError(f"{where}: expected a list of names, got {value!r}")
+    if len(set(value)) != len(value):
+        raise DescriptionError(f"{where}: names repeat in {value!r}")
+    return tuple(value)
+
+
+def read_description(path: Path) -> RobotDescription:
+    """Reads and validates a ``description.json``; errors name the file and the offending field."""
+    path = Path(path)
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DescriptionError(f"{path}: no such file") from None
+    except json.JSONDecodeError as error:
+        raise DescriptionError(f"{path}: not valid JSON ({error})") from None
+    if not isinstance(raw, dict):
+        raise DescriptionError(f"{path}: expected a JSON object at the top level")
+    where = str(path)
+    version = _require(raw, "schema_version", int, where)
+    if version != SCHEMA_VERSION:
+        raise DescriptionError(
+            f"{where}.schema_version: {version} is not supported (expected {SCHEMA_VERSION})"
+        )
+
+    groups: dict[str, GroupSpec] = {}
+    for group_name, group in _require(raw, "groups", dict, where).items():
+        group_where = f"{where}.groups.{group_name}"
+        if not isinstance(group, dict):
+            raise DescriptionError(f"{group_where}: expected an object, got {group!r}")
+        site = group.get("site")
+        if site is not None and not isinstance(site, str):
+            raise DescriptionError(f"{group_where}.site: expected a site name or null, got {site!r}")
+        groups[group_name] = GroupSpec(
+            name=group_name,
+            joints=_string_list(group.get("joints", []), f"{group_where}.joints"),
+            site=site,
+            equalities=_string_list(group.get("equalities", []), f"{group_where}.equalities"),
+        )
+
+    limits: dict[str, JointLimitSpec] = {}
+    for joint, spec in _require(raw, "limits", dict, where).items():
+        joint_where = f"{where}.limits.{joint}"
+        if not isinstance(spec, dict):
+            raise DescriptionError(f"{joint_where}: expected an object, got {spec!r}")
+        values = {}
+        for key in ("velocity", "acceleration", "jerk"):
+            value = _require(spec, key, (int, float), joint_where)
+            if not math.isfinite(value) or value <= 0:
+                raise DescriptionError(
+                    f"{joint_where}.{key}: must be a finite positive number, got {value!r}"
+                )
+            values[key] = float(value)
+        limits[joint] = JointLimitSpec(**values)
+
+    return RobotDescription(
+        name=_require(raw, "name", str, where),
+        title=raw.get("title", ""),
+        model_file=path.parent / _require(raw, "model", str, where),
+        keyframe=_require(raw, "keyframe", str, where),
+        groups=groups,
+        limits=limits,
+    )

@@ -1,0 +1,1 @@
+"""Simulation: worlds, tasks, batched rollouts, Ruckig-smoothed execution and the viser viewer."""

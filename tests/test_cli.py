@@ -1,0 +1,100 @@
+"""The `besman` command line."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from besman import __version__
+from besman.cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_version_and_help(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"besman {__version__}"
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    assert "robots" in capsys.readouterr().out
+
+
+def test_robots_lists_the_models(capsys):
+    code, out, _ = run(capsys, "robots")
+    assert code == 0
+    assert [line.split("\t")[0] for line in out.splitlines()] == ["aila", "pa10"]
+
+
+def test_robots_show_json_is_the_joint_table(capsys):
+    code, out, _ = run(capsys, "robots", "show", "aila", "--json")
+    assert code == 0
+    table = json.loads(out)
+    joints = {joint["name"]: joint for joint in table["joints"]}
+    assert joints["J_Elbow_r"] == {
+        "group": "right_arm",
+        "name": "J_Elbow_r",
+        "lower": -0.0873,
+        "upper": 1.8326,
+        "velocity": 1.5,
+        "acceleration": 4.0,
+        "jerk": 40.0,
+    }
+    assert table["groups"]["right_gripper"]["actuators"] == ["right_gripper"]
+    assert len(joints) == 3 + 4 + 2 + 2 * 7 + 2 * 2
+
+
+def test_robots_show_prints_a_table(capsys):
+    code, out, _ = run(capsys, "robots", "show", "pa10")
+    assert code == 0
+    assert "S1" in out and "W2" in out and "velocity" in out and "6.283" in out
+
+
+def test_unknown_robot_is_a_clear_error(capsys):
+    code, _, err = run(capsys, "robots", "show", "r2d2")
+    assert code == 2
+    assert "unknown robot 'r2d2'; available: aila, pa10" in err
+    assert "Traceback" not in err
+
+
+def test_render_writes_a_png(capsys, tmp_path):
+    out_file = tmp_path / "pictures" / "pa10.png"
+    code, _, _ = run(
+        capsys, "robots", "render", "pa10", "--out", str(out_file), "--width", "320", "--height", "240"
+    )
+    assert code == 0
+    image = np.asarray(Image.open(out_file))
+    assert image.shape == (240, 320, 3)
+    assert image.std() > 10, "a real picture, not a blank frame"
+    assert list(tmp_path.joinpath("pictures").iterdir()) == [out_file], "no temporary files left behind"
+
+
+def test_render_rejects_a_non_png_name(capsys, tmp_path):
+    code, _, err = run(
+        capsys,
+        "robots",
+        "render",
+        "pa10",
+        "--out",
+        str(tmp_path / "x.jpg"),
+        "--width",
+        "64",
+        "--height",
+        "48",
+    )
+    assert code == 2 and "must end in .png" in err
+
+
+def test_python_dash_m_besman(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "besman", "robots"], capture_output=True, text=True, cwd=tmp_path, check=True
+    )
+    assert result.stdout.startswith("aila")

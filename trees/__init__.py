@@ -1,0 +1,1 @@
+"""Behaviour trees: movement primitives and skill templates as py_trees leaves, tree files, the runner."""
