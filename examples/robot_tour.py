@@ -14,12 +14,12 @@ from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # offscreen rendering; must precede `import mujoco`
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-from rich.console import Console  # noqa: E402
+import mujoco
+import numpy as np
+from rich.console import Console
 
-import besman.robots as robots  # noqa: E402
-from besman.robots.render import render, save_png  # noqa: E402
+import besman.robots as robots
+from besman.robots.render import render, save_png
 
 console = Console()
 

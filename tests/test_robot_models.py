@@ -287,7 +287,12 @@ def test_aila_gripper_holds_a_box_lifted_and_moved():
                 data.ctrl[arm.actuator_indices] = start + (10 * s**3 - 15 * s**4 + 6 * s**5) * (end - start)
             mujoco.mj_step(model, data)
 
+    def wrist_force():
+        return data.sensor("right_wrist_force").data
+
     move(0.2)
+    empty_hand = np.linalg.norm(wrist_force())
+    assert empty_hand == pytest.approx(0.76 * 9.81, rel=0.05), "palm and fingers hang on the sensor"
     data.ctrl[gripper.actuator_indices] = 0.0  # close
     move(0.8)
     held = box_in_hand()
@@ -295,6 +300,9 @@ def test_aila_gripper_holds_a_box_lifted_and_moved():
     start_height = data.xpos[body][2]
     move(1.0, solutions[0].qpos, solutions[1].qpos)
     assert data.xpos[body][2] - start_height == pytest.approx(0.2, abs=0.01), "lifted 20 cm"
+    move(0.3)
+    # The wrist sensor now feels the box's weight on top of the hand's own.
+    assert np.linalg.norm(wrist_force()) - empty_hand == pytest.approx(0.2 * 9.81, rel=0.05)
     slip = 0.0
     for a, b in [(1, 2), (2, 3)]:  # 2 s of carrying: out and back
         move(1.0, solutions[a].qpos, solutions[b].qpos)
