@@ -1,0 +1,235 @@
+"""Movement primitives: a DMP with its parameters and what it is for, saved as JSON + NPZ.
+
+A :class:`MovementPrimitive` is the unit that is learned, stored, optimised and executed: a joint-space
+:class:`~besman.skills.dmp.DMP` (``space="joint"``, for a robot's joint group) or a
+:class:`~besman.skills.cartesian_dmp.CartesianDMP` (``space="cartesian"``, for a frame such as a grasp
+site), with a name and free-form provenance (where it came from, how it was learned).
+
+On disk a primitive is two files: ``NAME.json`` (schema version, metadata, the DMP's configuration, and the
+SHA-256 of the arrays) and ``NAME.npz`` (the arrays, loaded without pickle). Both are written atomically;
+loading validates the schema, the checksum, every shape and every value, and names the file and field of
+anything wrong.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from besman.skills.cartesian_dmp import CartesianDMP
+from besman.skills.dmp import DMP
+from besman.skills.storage import npz_bytes, read_json, read_npz, sha256, write_atomically
+
+SCHEMA_VERSION = 1
+SPACES = ("joint", "cartesian")
+_SCALARS = ("execution_time", "dt", "alpha_y", "beta_y", "final_phase", "overlap")
+_POSITION_ARRAYS = (
+    "scale",
+    "start",
+    "start_velocity",
+    "start_acceleration",
+    "goal",
+    "goal_velocity",
+    "weights",
+)
+_ROTATION_ARRAYS = (
+    "rotation_scale",
+    "start_orientation",
+    "start_angular_velocity",
+    "goal_orientation",
+    "rotation_weights",
+)
+
+
+@dataclass
+class MovementPrimitive:
+    """A DMP together with its parameters and metadata.
+
+    Attributes:
+        dmp: the joint-space :class:`DMP` or the :class:`CartesianDMP`.
+        name: a name people use for it ("approach", "throw").
+        space: "joint" or "cartesian" (must match the DMP's kind).
+        robot: the robot it is for (``besman.robots.available()``), if any.
+        group: the joint group it drives (joint space), if any.
+        frame: the site or frame it moves (Cartesian space), if any.
+        provenance: JSON-compatible facts about its origin (demonstrations, learner, date, ...).
+    """
+
+    dmp: DMP | CartesianDMP
+    name: str
+    space: str = "joint"
+    robot: str | None = None
+    group: str | None = None
+    frame: str | None = None
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.space not in SPACES:
+            raise ValueError(f"space must be one of {SPACES}, got {self.space!r}")
+        expected = CartesianDMP if self.space == "cartesian" else DMP
+        if not isinstance(self.dmp, expected):
+            raise ValueError(
+                f"a {self.space}-space primitive needs a {expected.__name__}, got {type(self.dmp).__name__}"
+            )
+        try:
+            json.dumps(self.provenance)
+        except TypeError as error:
+            raise ValueError(f"provenance must be JSON-compatible: {error}") from None
+
+    @property
+    def theta(self) -> np.ndarray:
+        """The DMP's parameter vector (``dmp.get_params()``)."""
+        return self.dmp.get_params()
+
+    def save(self, path: str | Path) -> Path:
+        """Writes ``path`` (``.json``) and its arrays beside it (``.npz``); returns the JSON path."""
+        json_path = _json_path(path)
+        config, arrays = _dmp_state(self.dmp)
+        data = npz_bytes(arrays)
+        document = {
+            "schema_version": SCHEMA_VERSION,
+            "kind": "movement_primitive",
+            "name": self.name,
+            "space": self.space,
+            "robot": self.robot,
+            "group": self.group,
+            "frame": self.frame,
+            "provenance": self.provenance,
+            "dmp": config,
+            "arrays": {"file": json_path.with_suffix(".npz").name, "sha256": sha256(data)},
+        }
+        write_atomically(json_path.with_suffix(".npz"), data)
+        write_atomically(json_path, (json.dumps(document, indent=2) + "\n").encode("utf-8"))
+        return json_path
+
+    @classmethod
+    def load(cls, path: str | Path) -> MovementPrimitive:
+        """Reads a primitive written by :meth:`save`; a ``ValueError`` names the file and the problem."""
+        json_path = _json_path(path)
+        document = read_json(json_path)
+        where = str(json_path)
+        if document.get("schema_version") != SCHEMA_VERSION:
+            raise ValueError(
+                f"{where}: schema_version {document.get('schema_version')!r} is not supported "
+                f"(expected {SCHEMA_VERSION})"
+            )
+        if document.get("kind") != "movement_primitive":
+            raise ValueError(f"{where}: kind must be 'movement_primitive', got {document.get('kind')!r}")
+        reference = _field(document, "arrays", dict, where)
+        npz_name = _field(reference, "file", str, f"{where}: arrays")
+        if Path(npz_name).name != npz_name:
+            raise ValueError(f"{where}: arrays.file must be a file name beside the JSON, got {npz_name!r}")
+        arrays = read_npz(json_path.parent / npz_name, _field(reference, "sha256", str, f"{where}: arrays"))
+        try:
+            dmp = _restore_dmp(_field(document, "dmp", dict, where), arrays)
+            return cls(
+                dmp=dmp,
+                name=_field(document, "name", str, where),
+                space=_field(document, "space", str, where),
+                robot=_optional(document, "robot", where),
+                group=_optional(document, "group", where),
+                frame=_optional(document, "frame", where),
+                provenance=_field(document, "provenance", dict, where),
+            )
+        except ValueError as error:
+            message = str(error)
+            raise ValueError(message if message.startswith(where) else f"{where}: {message}") from None
+
+
+def _json_path(path: str | Path) -> Path:
+    path = Path(path)
+    return path if path.suffix == ".json" else path.with_name(path.name + ".json")
+
+
+def _field(mapping: dict, key: str, kind: type, where: str):
+    if key not in mapping:
+        raise ValueError(f"{where}: missing field {key!r}")
+    value = mapping[key]
+    if not isinstance(value, kind) or isinstance(value, bool):
+        raise ValueError(f"{where}: field {key!r} must be a {kind.__name__}, got {value!r}")
+    return value
+
+
+def _optional(mapping: dict, key: str, where: str) -> str | None:
+    value = mapping.get(key)
+    if value is not None and not isinstance(value, str):
+        raise ValueError(f"{where}: field {key!r} must be a string or null, got {value!r}")
+    return value
+
+
+def _dmp_state(dmp: DMP | CartesianDMP) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    position = dmp.position if isinstance(dmp, CartesianDMP) else dmp
+    config = {
+        "type": type(dmp).__name__,
+        "n_dims": position.n_dims,
+        "n_weights": position.n_weights,
+        "execution_time": position.execution_time,
+        "dt": position.dt,
+        "alpha_y": position.system.alpha_y,
+        "beta_y": position.system.beta_y,
+        "final_phase": position.basis.final_phase,
+        "overlap": position.basis.overlap,
+    }
+    arrays = {name: np.asarray(getattr(position, name), dtype=float) for name in _POSITION_ARRAYS}
+    if isinstance(dmp, CartesianDMP):
+        arrays |= {name: np.asarray(getattr(dmp, name), dtype=float) for name in _ROTATION_ARRAYS}
+    return config, arrays
+
+
+def _restore_dmp(config: dict[str, Any], arrays: dict[str, np.ndarray]) -> DMP | CartesianDMP:
+    kind = config.get("type")
+    if kind not in ("DMP", "CartesianDMP"):
+        raise ValueError(f"dmp.type must be 'DMP' or 'CartesianDMP', got {kind!r}")
+    scalars = {}
+    for name in _SCALARS:
+        value = config.get(name)
+        if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
+            raise ValueError(f"dmp.{name} must be a finite number, got {value!r}")
+        scalars[name] = float(value)
+    n_weights = config.get("n_weights")
+    if not isinstance(n_weights, int) or isinstance(n_weights, bool):
+        raise ValueError(f"dmp.n_weights must be an integer, got {n_weights!r}")
+    names = _POSITION_ARRAYS + (_ROTATION_ARRAYS if kind == "CartesianDMP" else ())
+    missing = [name for name in names if name not in arrays]
+    if missing:
+        raise ValueError(f"the arrays lack {', '.join(missing)}")
+    vectors = {name: arrays[name] for name in names if "weights" not in name}
+    if kind == "DMP":
+        n_dims = config.get("n_dims")
+        if not isinstance(n_dims, int) or isinstance(n_dims, bool):
+            raise ValueError(f"dmp.n_dims must be an integer, got {n_dims!r}")
+        dmp = DMP(n_dims, n_weights=n_weights, **scalars, **vectors)
+        dmp.weights = _weights("weights", arrays["weights"], (n_dims, n_weights))
+        return dmp
+    cartesian = CartesianDMP(
+        n_weights=n_weights,
+        **scalars,
+        scale=vectors["scale"],
+        start_position=vectors["start"],
+        start_velocity=vectors["start_velocity"],
+        goal_position=vectors["goal"],
+        goal_velocity=vectors["goal_velocity"],
+        rotation_scale=vectors["rotation_scale"],
+        start_orientation=vectors["start_orientation"],
+        start_angular_velocity=vectors["start_angular_velocity"],
+        goal_orientation=vectors["goal_orientation"],
+    )
+    cartesian.position.start_acceleration = _weights(
+        "start_acceleration", vectors["start_acceleration"], (3,)
+    )
+    cartesian.position.weights = _weights("weights", arrays["weights"], (3, n_weights))
+    cartesian.rotation_weights = _weights("rotation_weights", arrays["rotation_weights"], (3, n_weights))
+    return cartesian
+
+
+def _weights(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    if value.shape != shape:
+        raise ValueError(f"array {name!r} must have shape {shape}, got {value.shape}")
+    if not np.issubdtype(value.dtype, np.floating) or not np.all(np.isfinite(value)):
+        raise ValueError(f"array {name!r} must hold finite floats")
+    return value.astype(float)

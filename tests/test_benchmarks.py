@@ -1,0 +1,25 @@
+"""The benchmark scripts run and report ratios as JSON (speed itself is claimed by the scripts, not tests)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+@pytest.mark.slow
+def test_dmp_benchmark_reports_every_case_as_json():
+    result = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "dmp.py"), "--json", "--repeats", "1"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    report = json.loads(result.stdout)
+    assert [case["name"][:3] for case in report["cases"]] == ["(a)", "(b)", "(c)", "(d)"]
+    for case in report["cases"]:
+        assert case["ratio"] == pytest.approx(case["theirs_s"] / case["ours_s"])
+        assert case["ours_s"] > 0 and case["theirs_s"] > 0
