@@ -14,6 +14,7 @@ An unreachable target is not an exception: the result says ``success=False`` and
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -102,7 +103,7 @@ def _as_unit_quaternion(quaternion) -> np.ndarray:
 
 def solve_ik(
     robot: Robot,
-    group: str,
+    group: str | Sequence[str],
     position,
     quaternion=None,
     *,
@@ -113,27 +114,35 @@ def solve_ik(
     max_iterations: int = 200,
     restarts: int = 10,
     seed: int = 0,
+    joint_weights=None,
 ) -> IKResult:
     """Joint values of ``group`` that bring ``site`` to ``position`` (and ``quaternion``, w-x-y-z, if given).
 
     Args:
         robot: the robot.
-        group: the joint group to move (e.g. ``"right_arm"``); all other joints keep ``initial_qpos``.
+        group: the joint group to move (e.g. ``"right_arm"``), or several (``("torso", "right_arm")``) whose
+            joints move together; all other joints keep ``initial_qpos``. ``qpos`` of the result follows
+            the groups' joint order.
         position: target position in the world frame (m).
         quaternion: target orientation (w, x, y, z) in the world frame, or None for position only.
-        site: the site to move; defaults to the group's end-effector site.
+        site: the site to move; defaults to the (last) group's end-effector site.
         initial_qpos: full configuration to start from (default: the robot's keyframe).
         position_tolerance: success threshold on the position error (m).
         orientation_tolerance: success threshold on the orientation error (rad).
         max_iterations: iterations per attempt.
         restarts: attempts from random configurations after the first one fails.
         seed: seed of the restart configurations (same seed, same result).
+        joint_weights: per joint (in the groups' order), how freely it moves relative to the others in the
+            least-squares step (default: all equal); e.g. acceleration limits, so that a heavy torso joint
+            takes a small share of a redundant motion.
     """
     model = robot.model
-    joint_group = robot.group(group)
-    site_name = site or joint_group.site
+    groups = [robot.group(name) for name in ((group,) if isinstance(group, str) else group)]
+    if not groups:
+        raise ValueError("solve_ik needs at least one joint group")
+    site_name = site or groups[-1].site
     if site_name is None:
-        raise ValueError(f"group {group!r} has no end-effector site; pass site=...")
+        raise ValueError(f"group {groups[-1].name!r} has no end-effector site; pass site=...")
     site_id = _site_id(model, site_name)
     target_position = np.asarray(position, dtype=float)
     if target_position.shape != (3,) or not np.all(np.isfinite(target_position)):
@@ -149,8 +158,16 @@ def solve_ik(
             raise ValueError(f"initial_qpos must be {model.nq} finite numbers")
         data.qpos[:] = initial_qpos
 
-    qpos_idx, dof_idx = joint_group.qpos_indices, joint_group.dof_indices
-    lower, upper = joint_group.lower, joint_group.upper
+    qpos_idx = np.concatenate([g.qpos_indices for g in groups])
+    dof_idx = np.concatenate([g.dof_indices for g in groups])
+    lower = np.concatenate([g.lower for g in groups])
+    upper = np.concatenate([g.upper for g in groups])
+    if joint_weights is None:
+        weights = np.ones(len(qpos_idx))
+    else:
+        weights = np.asarray(joint_weights, dtype=float)
+        if weights.shape != (len(qpos_idx),) or not np.all(np.isfinite(weights)) or np.any(weights <= 0):
+            raise ValueError(f"joint_weights must be {len(qpos_idx)} positive numbers, got {joint_weights!r}")
     rows = 6 if target_quaternion is not None else 3
     jacobian = np.zeros((6, model.nv))
     site_quaternion, error_quaternion, error = np.empty(4), np.empty(4), np.empty(6)
@@ -176,7 +193,8 @@ def solve_ik(
             J = jacobian[:rows, dof_idx]
             free = np.ones(len(q), dtype=bool)
             for _ in range(len(q)):
-                step = _lm_step(J[:, free], e)
+                # Solve for dq / weight: joints with small weights (slow, heavy ones) move less.
+                step = _lm_step(J[:, free] * weights[free], e) * weights[free]
                 dq = np.zeros(len(q))
                 dq[free] = step
                 pushing_out = ((q <= lower) & (dq < 0)) | ((q >= upper) & (dq > 0))

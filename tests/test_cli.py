@@ -49,6 +49,7 @@ def test_robots_show_json_is_the_joint_table(capsys):
         "jerk": 40.0,
     }
     assert table["groups"]["right_gripper"]["actuators"] == ["right_gripper"]
+    assert len(table["joints"]) == 3 + 4 + 1 + 2 + 2 * 7 + 2 * 2  # J_Waist twice: torso and waist
     assert len(joints) == 3 + 4 + 2 + 2 * 7 + 2 * 2
 
 

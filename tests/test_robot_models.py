@@ -131,12 +131,14 @@ def test_aila_groups_and_actuators():
     assert set(aila.groups) == {
         "base",
         "torso",
+        "waist",
         "head",
         "right_arm",
         "left_arm",
         "right_gripper",
         "left_gripper",
     }
+    assert aila.group("waist").joints == ("J_Waist",), "the torso's last joint, for reaching across"
     assert aila.group("torso").joints == ("J_Foot", "J_Knees", "J_Hip", "J_Waist")
     assert aila.group("right_arm").actuators == aila.group("right_arm").joints
     assert aila.group("right_gripper").actuators == ("right_gripper",)

@@ -1,0 +1,59 @@
+"""What every task shares: a box of task parameters tau and its validation.
+
+A task parameter vector tau places things (a landing target, an object and a place position). Each task
+exposes its :class:`TaskBounds`; values outside them are rejected with a message that names the value.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from besman.skills.validation import finite_array
+
+
+@dataclass(frozen=True)
+class TaskBounds:
+    """An axis-aligned box of task parameters: ``low`` and ``high`` (inclusive), one name per entry."""
+
+    names: tuple[str, ...]
+    low: tuple[float, ...]
+    high: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        if not len(self.names) == len(self.low) == len(self.high):
+            raise ValueError("bounds need as many names as low and high values")
+        if any(lo > hi for lo, hi in zip(self.low, self.high, strict=True)):
+            raise ValueError(f"bounds have low > high: {self.low} vs {self.high}")
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    def check(self, taus, *, n: int | None = None) -> np.ndarray:
+        """``taus`` as an (N, size) array, broadcast from one tau if ``n`` is given; a ``ValueError`` names
+        any value outside the box."""
+        taus = finite_array("tau", taus)
+        if taus.ndim == 1:
+            taus = taus[None]
+        if taus.ndim != 2 or taus.shape[1] != self.size:
+            raise ValueError(
+                f"tau must have {self.size} entries ({', '.join(self.names)}), got shape {taus.shape}"
+            )
+        if n is not None and len(taus) == 1:
+            taus = np.repeat(taus, n, axis=0)
+        elif n is not None and len(taus) != n:
+            raise ValueError(f"got {len(taus)} taus for {n} candidates")
+        low, high = np.asarray(self.low), np.asarray(self.high)
+        outside = (taus < low - 1e-12) | (taus > high + 1e-12)
+        if outside.any():
+            row, column = (int(i) for i in np.argwhere(outside)[0])
+            raise ValueError(
+                f"tau {self.names[column]} = {taus[row, column]:.4g} is outside the task's bounds "
+                f"[{self.low[column]:.4g}, {self.high[column]:.4g}]"
+            )
+        return taus
+
+    def as_dict(self) -> dict:
+        return {name: [lo, hi] for name, lo, hi in zip(self.names, self.low, self.high, strict=True)}

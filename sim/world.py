@@ -1,0 +1,196 @@
+"""Worlds: a robot model composed with a scene (furniture and objects) through MuJoCo's MjSpec.
+
+A :class:`World` owns one compiled model, one ``MjData`` and the robot's description compiled against the
+composed model (so group indices are right even after objects are added). It resets to a keyframe, and
+reads and places objects by name. Two worlds are provided:
+
+- :func:`tabletop_world` - AILA in front of a table (top 0.78 m) with a raised shelf board (top 0.90 m) on
+  its right side, and graspable objects (a 6 cm wooden-like box of 0.2 kg by default).
+- :func:`throwing_world` - the PA-10 on a floor, holding its ball, with a sensor of the ball's position.
+
+Objects are free bodies; their poses are (x, y, z) plus a (w, x, y, z) quaternion.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+import besman.robots as robots
+from besman.robots import Pose, Robot
+
+
+@dataclass(frozen=True)
+class GraspableObject:
+    """A free rigid object.
+
+    Attributes:
+        name: body name (its geom and free joint are called the same).
+        shape: "box" or "cylinder".
+        size: MuJoCo geom size (box: half extents; cylinder: radius, half height) in m.
+        mass: kg.
+        friction: sliding, torsional, rolling friction coefficients.
+        rgba: colour.
+    """
+
+    name: str
+    shape: str = "box"
+    size: tuple[float, ...] = (0.03, 0.03, 0.03)
+    mass: float = 0.2
+    friction: tuple[float, float, float] = (0.8, 0.01, 0.0001)
+    rgba: tuple[float, float, float, float] = (0.85, 0.45, 0.15, 1.0)
+
+    @property
+    def half_height(self) -> float:
+        return self.size[2] if self.shape == "box" else self.size[1]
+
+
+DEFAULT_BOX = GraspableObject("box")
+
+
+@dataclass(frozen=True)
+class Surface:
+    """A horizontal support: a box whose top face is at ``height`` and covers [x0, x1] x [y0, y1]."""
+
+    name: str
+    height: float
+    x: tuple[float, float]
+    y: tuple[float, float]
+
+    def contains(self, x: float, y: float, margin: float = 0.0) -> bool:
+        return self.x[0] + margin <= x <= self.x[1] - margin and self.y[0] + margin <= y <= self.y[1] - margin
+
+
+TABLE = Surface("table", 0.78, (0.38, 0.98), (-0.60, 0.60))
+SHELF = Surface("shelf", 0.90, (0.38, 0.75), (-0.60, -0.28))
+
+
+class World:
+    """A compiled scene with a robot; see the module documentation."""
+
+    def __init__(
+        self,
+        robot: Robot,
+        spec: mujoco.MjSpec,
+        objects: tuple[GraspableObject, ...] = (),
+        surfaces: tuple[Surface, ...] = (),
+    ) -> None:
+        self.spec = spec
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self.robot = Robot(robot.description, self.model)
+        self.objects = {item.name: item for item in objects}
+        self.surfaces = {surface.name: surface for surface in surfaces}
+        self.reset()
+
+    def reset(self, keyframe: str | None = None) -> None:
+        """Resets the simulation to a keyframe (default: the robot's home) with objects where they were
+        first placed."""
+        self.robot.reset(self.data, keyframe)
+
+    def _object_joint(self, name: str) -> int:
+        if name not in self.objects:
+            raise KeyError(f"no object {name!r} in the world; objects: {', '.join(self.objects) or 'none'}")
+        return self.model.joint(name).id
+
+    def object_pose(self, name: str) -> Pose:
+        address = self.model.jnt_qposadr[self._object_joint(name)]
+        return Pose(
+            self.data.qpos[address : address + 3].copy(), self.data.qpos[address + 3 : address + 7].copy()
+        )
+
+    def set_object_pose(self, name: str, position, quaternion=(1.0, 0.0, 0.0, 0.0)) -> None:
+        """Places an object (at rest) and recomputes the derived quantities."""
+        joint = self._object_joint(name)
+        position = np.asarray(position, dtype=float)
+        quaternion = np.asarray(quaternion, dtype=float)
+        if (
+            position.shape != (3,)
+            or quaternion.shape != (4,)
+            or not np.all(np.isfinite(np.r_[position, quaternion]))
+        ):
+            raise ValueError(f"object pose must be 3 + 4 finite numbers, got {position!r}, {quaternion!r}")
+        address, dof = self.model.jnt_qposadr[joint], self.model.jnt_dofadr[joint]
+        self.data.qpos[address : address + 3] = position
+        self.data.qpos[address + 3 : address + 7] = quaternion / np.linalg.norm(quaternion)
+        self.data.qvel[dof : dof + 6] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+    def place_on(self, name: str, surface: str, x: float, y: float, yaw: float = 0.0) -> None:
+        """Sets an object upright on a surface at (x, y)."""
+        support = self.surfaces[surface]
+        item = self.objects[name]
+        self.set_object_pose(
+            name, [x, y, support.height + item.half_height], [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+        )
+
+
+def _add_object(spec: mujoco.MjSpec, item: GraspableObject, position) -> None:
+    shapes = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER}
+    if item.shape not in shapes:
+        raise ValueError(f"object {item.name!r}: shape must be one of {sorted(shapes)}, got {item.shape!r}")
+    body = spec.worldbody.add_body(name=item.name, pos=list(position))
+    body.add_freejoint(name=item.name)
+    body.add_geom(
+        name=item.name,
+        type=shapes[item.shape],
+        size=list(item.size) + [0.0] * (3 - len(item.size)),
+        mass=item.mass,
+        friction=list(item.friction),
+        rgba=list(item.rgba),
+        condim=4,
+    )
+
+
+def _add_surface(spec: mujoco.MjSpec, surface: Surface, base: float, rgba) -> None:
+    centre = [sum(surface.x) / 2, sum(surface.y) / 2, (surface.height + base) / 2]
+    half = [(surface.x[1] - surface.x[0]) / 2, (surface.y[1] - surface.y[0]) / 2, (surface.height - base) / 2]
+    spec.worldbody.add_geom(
+        name=surface.name,
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        pos=centre,
+        size=half,
+        rgba=rgba,
+        friction=[0.7, 0.01, 0.0001],
+    )
+
+
+def tabletop_world(objects: tuple[GraspableObject, ...] = (DEFAULT_BOX,)) -> World:
+    """AILA at the origin facing +x, a table in front and a shelf board on the table's right side.
+
+    Objects start on the table in front of the robot, spread along y.
+    """
+    aila = robots.load("aila")
+    spec = mujoco.MjSpec.from_file(str(aila.folder / "scene.xml"))
+    table_top = 0.04  # thickness of the table plate; legs hold it up
+    _add_surface(spec, TABLE, TABLE.height - table_top, [0.55, 0.4, 0.28, 1])
+    for x in TABLE.x:
+        for y in TABLE.y:
+            inset = np.array([0.04 if x == TABLE.x[0] else -0.04, 0.04 if y == TABLE.y[0] else -0.04])
+            spec.worldbody.add_geom(
+                type=mujoco.mjtGeom.mjGEOM_BOX,
+                pos=[x + inset[0], y + inset[1], (TABLE.height - table_top) / 2],
+                size=[0.025, 0.025, (TABLE.height - table_top) / 2],
+                rgba=[0.45, 0.32, 0.22, 1],
+                contype=0,
+                conaffinity=0,
+            )
+    _add_surface(spec, SHELF, TABLE.height, [0.35, 0.5, 0.65, 1])
+    for index, item in enumerate(objects):
+        _add_object(spec, item, [0.55, -0.08 + 0.15 * index, TABLE.height + item.half_height])
+    return World(aila, spec, tuple(objects), (TABLE, SHELF))
+
+
+def throwing_world() -> World:
+    """The PA-10 scene: the arm on a floor with the ball welded in its hand."""
+    pa10 = robots.load("pa10")
+    spec = mujoco.MjSpec.from_file(str(pa10.folder / "scene.xml"))
+    spec.add_sensor(
+        name="ball_position",
+        type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+        objtype=mujoco.mjtObj.mjOBJ_XBODY,
+        objname="ball",
+    )
+    return World(pa10, spec)
