@@ -1,19 +1,28 @@
-"""Batched evaluation of candidates, locally on threads or spread over a Ray cluster.
+"""Batched evaluation of candidates, on all local cores or spread over a Ray cluster.
 
 A task evaluates N parameter vectors theta (one per candidate) in task instances tau and returns an
-:class:`Evaluation`: one reward per candidate and one detail record per rollout. The ``threads`` backend
-runs rollouts on MuJoCo's own thread pool in this process. The ``ray`` backend (extra ``distributed``)
-splits the batch into chunks, rebuilds the task from its configuration on each Ray worker (once per worker
-process) and evaluates every chunk there with the threads backend; rollouts are independent and
-deterministic, so both backends give identical results. Connect to a cluster with
-``ray.init(address=...)`` first; without it a local Ray instance is started.
+:class:`Evaluation`: one reward per candidate and one detail record per rollout. Tasks implement
+``evaluate_locally(thetas, taus)`` (their work in this process) and are described by a picklable
+configuration whose ``build()`` makes the task anywhere. On top of that:
+
+- ``backend="threads"`` (default) uses every local core. Open-loop tasks run their rollouts in MuJoCo's C
+  rollout on its thread pool; closed-loop tasks, whose control runs in Python and would serialise on the
+  GIL in threads, run their episodes in a pool of local worker processes (:func:`evaluate_in_processes`).
+- ``backend="ray"`` (extra ``distributed``) splits the batch into chunks and evaluates each on a Ray worker,
+  which builds the task from its configuration once per worker process (:func:`evaluate_on_ray`).
+  Connect to a cluster with ``ray.init(address=...)`` first; without it a local Ray instance is started.
+
+Rollouts are independent and deterministic, so every backend gives identical results.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from functools import cache
 from typing import Any, Protocol
 
 import numpy as np
@@ -37,7 +46,7 @@ class Evaluation:
 
 
 class TaskConfig(Protocol):
-    """A picklable description of a task that can rebuild it anywhere."""
+    """A picklable (hashable) description of a task that can rebuild it anywhere."""
 
     def build(self) -> Any: ...
 
@@ -53,7 +62,32 @@ _TASKS: dict[Any, Any] = {}  # per worker process: configuration -> built task
 def _evaluate_chunk(config: TaskConfig, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
     if config not in _TASKS:
         _TASKS[config] = config.build()
-    return _TASKS[config].evaluate(thetas, taus, backend="threads")
+    return _TASKS[config].evaluate_locally(thetas, taus)
+
+
+def _chunks(count: int, workers: int) -> list[slice]:
+    size = max(1, math.ceil(count / workers))
+    return [slice(start, start + size) for start in range(0, count, size)]
+
+
+@cache
+def _process_pool(workers: int) -> ProcessPoolExecutor:
+    # "spawn": a fresh interpreter per worker, safe with MuJoCo's and BLAS's threads (fork is not).
+    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+
+
+def evaluate_in_processes(config: TaskConfig, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
+    """Evaluates (thetas, taus) in chunks on a persistent pool of local worker processes (one per core);
+    each worker builds the task once. Results come back in order."""
+    workers = min(len(thetas), os.cpu_count() or 1)
+    if workers <= 1:
+        return _evaluate_chunk(config, thetas, taus)
+    pool = _process_pool(os.cpu_count() or 1)
+    parts = [
+        pool.submit(_evaluate_chunk, config, thetas[part], taus[part])
+        for part in _chunks(len(thetas), workers)
+    ]
+    return Evaluation.concatenate([part.result() for part in parts])
 
 
 def evaluate_on_ray(
@@ -66,13 +100,13 @@ def evaluate_on_ray(
         raise ValueError("backend='ray' needs Ray: pip install 'besman[distributed]'") from None
     if not ray.is_initialized():
         ray.init(include_dashboard=False, log_to_driver=False)
-    if chunk_size is None:
-        workers = max(1, int(ray.available_resources().get("CPU", 1)))
-        chunk_size = max(1, math.ceil(len(thetas) / workers))
-    remote: Callable = ray.remote(num_cpus=1)(_evaluate_chunk)
+    workers = max(1, int(ray.available_resources().get("CPU", 1)))
+    parts = (
+        _chunks(len(thetas), workers)
+        if chunk_size is None
+        else [slice(start, start + chunk_size) for start in range(0, len(thetas), chunk_size)]
+    )
+    remote = ray.remote(num_cpus=1)(_evaluate_chunk)
     config_reference = ray.put(config)
-    futures = [
-        remote.remote(config_reference, thetas[start : start + chunk_size], taus[start : start + chunk_size])
-        for start in range(0, len(thetas), chunk_size)
-    ]
+    futures = [remote.remote(config_reference, thetas[part], taus[part]) for part in parts]
     return Evaluation.concatenate(ray.get(futures))

@@ -64,6 +64,7 @@ class ExecutorConfig:
         range_tolerance: how far (rad or m) a reference may pass a joint range (commands are clipped to the
             range) before it is rejected.
         lookahead_cycles: how far ahead on a reference each cycle's Ruckig target lies.
+        arrival_timeout: seconds the robot may take to reach a goal after its command got there.
     """
 
     control_period: float = 0.002
@@ -77,6 +78,7 @@ class ExecutorConfig:
     settle_cycles: int = 25
     range_tolerance: float = 0.02
     lookahead_cycles: int = 10
+    arrival_timeout: float = 1.0
 
 
 @dataclass
@@ -88,6 +90,7 @@ class Motion:
     message: str = field(default="", init=False)
     cycles: int = field(default=0, init=False)
     settled: int = field(default=0, init=False)  # consecutive cycles at the goal
+    waited: int = field(default=0, init=False)  # cycles the command has been at the goal
 
     def finish(self, status: MotionStatus, message: str = "") -> MotionStatus:
         self.status, self.message = status, message
@@ -449,6 +452,15 @@ class Executor:
         motion.settled = motion.settled + 1 if arrived else 0
         if motion.settled >= self.config.settle_cycles:
             motion.finish(MotionStatus.SUCCEEDED, "reached")
+        elif done and np.abs(self.position - goal).max() <= 1e-6:
+            motion.waited += 1
+            if motion.waited * self.config.control_period > self.config.arrival_timeout:
+                error = np.abs(self.measured_position() - goal)
+                joint = self.joints[int(error.argmax())]
+                motion.finish(
+                    MotionStatus.FAILED,
+                    f"joint {joint} stays {error.max():.3g} from its goal (blocked or in contact)",
+                )
 
     def _judge_gripper(self, motion: GripperMotion) -> None:
         data = self.world.data
@@ -621,11 +633,16 @@ class Executor:
         return found
 
 
+RANGE_SLACK = 1e-3  # rad or m
+
+
 def limit_violations(log: Sequence[LogEntry], executor: Executor, tolerance: float = 1e-6) -> list[str]:
     """Checks a command log against the executor's limits; returns one message per violated limit.
 
-    Checked per joint: the range, the commanded velocity and acceleration, the jerk (change of the commanded
-    acceleration per cycle) and the mean velocity over each cycle (change of the commanded position).
+    Checked per joint: the commanded velocity and acceleration, the jerk (change of the commanded
+    acceleration per cycle), the mean velocity over each cycle (change of the commanded position), and the
+    range, up to ``RANGE_SLACK``: Ruckig aims at targets inside the range but may pass a limit by a fraction
+    of a milliradian on the way (the position actuators clip their command to the range anyway).
     """
     if len(log) < 2:
         return []
@@ -634,7 +651,11 @@ def limit_violations(log: Sequence[LogEntry], executor: Executor, tolerance: flo
     velocities = np.array([entry.velocity for entry in log])
     accelerations = np.array([entry.acceleration for entry in log])
     checks = [
-        ("range", np.maximum(executor.lower - positions, positions - executor.upper), 0.0 * executor.lower),
+        (
+            "range",
+            np.maximum(executor.lower - positions, positions - executor.upper),
+            np.full(executor.dofs, RANGE_SLACK),
+        ),
         ("velocity", np.abs(velocities), executor.max_velocity),
         ("mean velocity", np.abs(np.diff(positions, axis=0)) / period, executor.max_velocity),
         ("acceleration", np.abs(accelerations), executor.max_acceleration),

@@ -25,20 +25,25 @@ error, simulated time, largest contact force on the box, and which step failed a
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import astuple, dataclass, fields
 
 import mujoco
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 import besman.robots as robots
-from besman.sim.evaluation import Evaluation, check_backend, evaluate_on_ray
-from besman.sim.executor import Executor, FollowReference, GripperMotion, Motion, MotionStatus
+from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
+from besman.sim.executor import (
+    Executor,
+    FollowReference,
+    GripperMotion,
+    Motion,
+    MotionStatus,
+    limit_violations,
+)
+from besman.sim.primitives import point_to_point, straight_line, top_down
 from besman.sim.tasks import TaskBounds
 from besman.sim.world import DEFAULT_BOX, SHELF, TABLE, GraspableObject, World, tabletop_world
-from besman.skills import DMP, MovementPrimitive, Trajectory
+from besman.skills import Trajectory
 from besman.skills.validation import finite_array
 
 PICK_PLACE_BOUNDS = TaskBounds(
@@ -49,16 +54,6 @@ OPEN = 0.045  # finger opening (m per finger) before grasping and for releasing:
 # The fingers close across a pair of the box's faces (yaw 0 or 90 deg, up to 15 deg off); the hand's own
 # symmetry makes yaws 180 deg apart the same grasp.
 GRASP_YAWS = np.radians([0.0, 15.0, -15.0, -90.0, -75.0, 75.0])
-
-
-def top_down(yaw: float) -> np.ndarray:
-    """Quaternion (w, x, y, z) of a hand pointing down, fingers closing along (cos yaw, sin yaw, 0)."""
-    closing = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-    approach = np.array([0.0, 0.0, -1.0])
-    matrix = np.column_stack([np.cross(closing, approach), closing, approach])
-    quaternion = np.empty(4)
-    mujoco.mju_mat2Quat(quaternion, matrix.ravel())
-    return quaternion
 
 
 @dataclass(frozen=True)
@@ -101,12 +96,14 @@ class PickPlaceDetail:
     """One episode's outcome and metrics."""
 
     success: bool
+    grasped: bool  # the box was grasped and lifted
     placement_error: float | None  # m, horizontal distance of the box from the place target after release
     tilt_degrees: float | None
     sim_time: float
     max_contact_force: float  # N, largest normal force on the box
     failed_step: str | None
     message: str
+    limit_violations: tuple[str, ...] = ()  # commanded joint states beyond a limit (from the command log)
 
 
 @dataclass(frozen=True)
@@ -127,7 +124,6 @@ class PickPlaceTask:
     def __init__(self, config: PickPlaceConfig = PickPlaceConfig()) -> None:
         self.config = config
         self.world = tabletop_world((config.item,))
-        self._worlds = [self.world]
 
     @staticmethod
     def default_theta() -> np.ndarray:
@@ -147,88 +143,27 @@ class PickPlaceTask:
 
     def evaluate(self, thetas, taus, *, backend: str = "threads") -> Evaluation:
         """Episodes for thetas (N, 6) and taus (N, 4): reward = -placement error (m) on success, else -1;
-        details are :class:`PickPlaceDetail`. Episodes run in parallel on threads (MuJoCo releases the GIL
-        while it steps), one world per thread, or on Ray."""
+        details are :class:`PickPlaceDetail`. With ``backend="threads"`` the episodes run on all local
+        cores in worker processes (the control loop is Python: threads would wait on each other), with
+        ``"ray"`` on a Ray cluster."""
         check_backend(backend)
         thetas = finite_array("theta", thetas)
         thetas = thetas[None] if thetas.ndim == 1 else thetas
-        plans = [PickPlacePlan.from_theta(theta) for theta in thetas]
+        for theta in thetas:
+            PickPlacePlan.from_theta(theta)  # reject bad plans before any work starts
         taus = self.bounds.check(taus, n=len(thetas))
         if backend == "ray":
             return evaluate_on_ray(self.config, thetas, taus)
-        workers = min(len(plans), os.cpu_count() or 1)
-        while len(self._worlds) < workers:
-            self._worlds.append(tabletop_world((self.config.item,)))
-        chunks = [list(range(w, len(plans), workers)) for w in range(workers)]
+        return evaluate_in_processes(self.config, thetas, taus)
 
-        def run_chunk(w: int) -> list[tuple[int, PickPlaceDetail]]:
-            return [(i, run_episode(self._worlds[w], self.config.item, taus[i], plans[i])) for i in chunks[w]]
-
-        with ThreadPoolExecutor(workers) as pool:
-            results = dict(pair for chunk in pool.map(run_chunk, range(workers)) for pair in chunk)
-        details = tuple(results[i] for i in range(len(plans)))
+    def evaluate_locally(self, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
+        """The episodes one after the other in this process, in the task's own world."""
+        details = tuple(
+            run_episode(self.world, self.config.item, tau, PickPlacePlan.from_theta(theta))
+            for theta, tau in zip(thetas, taus, strict=True)
+        )
         rewards = np.array([-d.placement_error if d.success else FAILURE_REWARD for d in details])
         return Evaluation(rewards, details)
-
-
-def joint_primitive(
-    name: str, start: np.ndarray, goal: np.ndarray, executor: Executor, duration: float = 0.5
-) -> MovementPrimitive:
-    """A point-to-point joint-space DMP lasting at least ``duration`` and long enough for its quintic to stay
-    within the speed, acceleration and jerk limits (peaks 1.875 d / T, 5.77 d / T^2 and 60 d / T^3 for a
-    distance d)."""
-    distance = np.abs(goal - start)
-    needed = max(
-        float(np.max(1.875 * distance / executor.max_velocity)),
-        float(np.max(np.sqrt(5.774 * distance / executor.max_acceleration))),
-        float(np.max(np.cbrt(60.0 * distance / executor.max_jerk))),
-    )
-    dmp = DMP(len(goal), execution_time=max(duration, 1.1 * needed), goal=goal)
-    return MovementPrimitive(dmp, name, robot="aila", group="+".join(executor.groups))
-
-
-def straight_primitive(
-    name: str,
-    start: np.ndarray,
-    goal_position: np.ndarray,
-    orientation: np.ndarray,
-    executor: Executor,
-    duration: float,
-    knots: int = 8,
-) -> MovementPrimitive | None:
-    """A joint-space DMP that moves the executor's site on a straight line from where the configuration
-    ``start`` puts it to ``goal_position`` (constant ``orientation``): inverse kinematics at ``knots``
-    points of a minimum-jerk profile, each solved from the previous, imitated by the DMP. The fit smooths
-    the corner where a joint reaches its limit. None if a knot is out of reach."""
-    origin = robots.forward_kinematics(
-        executor.world.robot, executor.full_qpos(start), executor.site
-    ).position
-    times = np.linspace(0.0, duration, knots)
-    s = times / duration
-    profile = 10 * s**3 - 15 * s**4 + 6 * s**5
-    qpos, path = executor.full_qpos(start), [start]
-    for fraction in profile[1:]:
-        result = robots.solve_ik(
-            executor.world.robot,
-            executor.groups,
-            origin + fraction * (goal_position - origin),
-            orientation,
-            site=executor.site,
-            initial_qpos=qpos,
-            restarts=0,
-            joint_weights=executor.max_acceleration,
-        )
-        if not result.success:
-            return None
-        path.append(result.qpos)
-        qpos[executor.qpos_indices] = result.qpos
-    path = np.array(path)
-    dense = np.linspace(0.0, duration, 10 * knots)
-    positions = CubicSpline(times, path, axis=0, bc_type="clamped")(dense)
-    dmp = DMP(executor.dofs, dt=executor.config.control_period).imitate(dense, positions)
-    # A straight move starts and ends at rest, exactly at its knots.
-    dmp.configure(start=path[0], goal=path[-1], start_velocity=0.0, start_acceleration=0.0, goal_velocity=0.0)
-    return MovementPrimitive(dmp, name, robot="aila", group="+".join(executor.groups))
 
 
 @dataclass(frozen=True)
@@ -279,7 +214,7 @@ def _plan_leg(
             qpos[executor.qpos_indices] = result.qpos
         else:
             primitives = [
-                straight_primitive(name, a, b, orientation, executor, duration)
+                straight_line(name, a, b, orientation, executor, duration)
                 for name, a, b in zip(names, configurations[:-1], positions[1:], strict=True)
             ]
             if any(primitive is None for primitive in primitives):
@@ -357,7 +292,7 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
     if put is None:
         return _failure(world, "plan", "no reachable, collision-free top-down placement at the target")
     transport = executor.primitive_reference(
-        joint_primitive(
+        point_to_point(
             "transport", pick.configurations[-1], put.configurations[0], executor, plan.transport_time
         ),
         start=pick.configurations[-1],
@@ -367,7 +302,7 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
     if lowest - item.half_height - plan.grasp_height < SHELF.height + 0.01:
         return _failure(world, "plan", f"the transport would sweep the box {lowest:.3f} m low over the shelf")
     approach = executor.primitive_reference(
-        joint_primitive("approach", executor.position, pick.configurations[0], executor)
+        point_to_point("approach", executor.position, pick.configurations[0], executor)
     )
     steps = [
         GripperMotion("open", opening=OPEN),
@@ -380,15 +315,17 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
         GripperMotion("release", opening=OPEN),
         FollowReference("retreat", reference=put.references[1]),
     ]
-    monitor = _BoxMonitor(world, item.name)
+    monitor = _BoxMonitor(world, item.name, executor)
     for motion in steps:
         _run(executor, motion, monitor)
         if motion.status is not MotionStatus.SUCCEEDED:
             return _failure(world, motion.name, motion.message, monitor)
         if motion.name in ("lift", "transport", "place") and not executor.holds(item.name):
             return _failure(world, motion.name, "the box slipped out of the hand", monitor)
-        if motion.name == "lift" and monitor.highest < TABLE.height + item.half_height + 0.05:
-            return _failure(world, motion.name, "the box was not lifted", monitor)
+        if motion.name == "lift":
+            if monitor.highest < TABLE.height + item.half_height + 0.05:
+                return _failure(world, motion.name, "the box was not lifted", monitor)
+            monitor.grasped = True
     for _ in range(round(0.3 / world.model.opt.timestep)):  # let the box settle
         mujoco.mj_step(world.model, world.data)
         monitor.update()
@@ -396,7 +333,7 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
     error = float(np.linalg.norm(pose.position[:2] - place_xy))
     tilt = math.degrees(math.acos(min(1.0, abs(pose.rotation[2, 2]))))
     on_shelf = abs(pose.position[2] - (SHELF.height + item.half_height)) < 0.01
-    success = error <= 0.02 and tilt < 10.0 and on_shelf
+    success = bool(error <= 0.02 and tilt < 10.0 and on_shelf)
     message = (
         "placed"
         if success
@@ -405,8 +342,17 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
             + ("" if on_shelf else ", off the shelf")
         )
     )
+    violations = tuple(limit_violations(executor.log, executor))
     return PickPlaceDetail(
-        success, error, tilt, float(world.data.time), monitor.max_force, None if success else "place", message
+        success,
+        True,
+        error,
+        tilt,
+        float(world.data.time),
+        monitor.max_force,
+        None if success else "place",
+        message,
+        violations,
     )
 
 
@@ -423,10 +369,11 @@ def _run(executor: Executor, motion: Motion, monitor: _BoxMonitor, timeout: floa
 
 
 class _BoxMonitor:
-    """Tracks the box's highest point and the largest normal contact force on it."""
+    """Tracks the box's highest point, the largest normal contact force on it, and whether it was grasped."""
 
-    def __init__(self, world: World, name: str) -> None:
-        self.world = world
+    def __init__(self, world: World, name: str, executor: Executor) -> None:
+        self.world, self.executor = world, executor
+        self.grasped = False
         self.body = world.model.body(name).id
         self.highest = float(world.data.xpos[self.body][2])
         self.max_force = 0.0
@@ -443,12 +390,10 @@ class _BoxMonitor:
 
 
 def _failure(world: World, step: str, message: str, monitor: _BoxMonitor | None = None) -> PickPlaceDetail:
+    time = float(world.data.time)
+    if monitor is None:
+        return PickPlaceDetail(False, False, None, None, time, 0.0, step, f"{step}: {message}")
+    violations = tuple(limit_violations(monitor.executor.log, monitor.executor))
     return PickPlaceDetail(
-        False,
-        None,
-        None,
-        float(world.data.time),
-        monitor.max_force if monitor else 0.0,
-        step,
-        f"{step}: {message}",
+        False, monitor.grasped, None, None, time, monitor.max_force, step, f"{step}: {message}", violations
     )

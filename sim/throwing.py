@@ -147,6 +147,7 @@ class ThrowingTask:
         self._control_spec = mujoco.mjtState.mjSTATE_CTRL.value | mujoco.mjtState.mjSTATE_EQ_ACTIVE.value
         self._pool: rollout.Rollout | None = None
         self._datas: list[mujoco.MjData] = []
+        self._outputs: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def n_params(self) -> int:
@@ -188,7 +189,7 @@ class ThrowingTask:
         """Per candidate: the control array (n_steps, nu + 1) of joint targets and the weld switch, the reason
         it fails before simulation (or None), the release step (-1: never) and how far the reference
         violates its constraints (0 if it does not)."""
-        references = self.dmp.trajectories(thetas, run_time=self.config.duration)
+        references = self.dmp.trajectories(thetas, run_time=self.config.duration, derivatives=0)
         joints = references.positions[:, 1:, : self.arm.size]  # the target for step k is the reference at k+1
         release_signal = references.positions[:, 1:, -1]
         released = release_signal >= self.config.release_threshold
@@ -202,7 +203,11 @@ class ThrowingTask:
         violations = np.zeros(len(thetas))
         positions = references.positions[:, :, : self.arm.size]
         overshoot = np.maximum(self.arm.lower - positions.min(axis=1), positions.max(axis=1) - self.arm.upper)
-        overspeed = np.abs(references.velocities[:, :, : self.arm.size]).max(axis=1) / self.speed_limits - 1.0
+        # The speeds the actuators are asked for: changes of the commanded positions per step.
+        speeds = (
+            np.abs(np.diff(references.positions[:, :, : self.arm.size], axis=1)).max(axis=1) / self.timestep
+        )
+        overspeed = speeds / self.speed_limits - 1.0
         shortfall = self.config.release_threshold - release_signal.max(axis=1)
         for i in range(len(thetas)):
             reason, violations[i] = self._reference_failure(overshoot[i], overspeed[i], shortfall[i])
@@ -241,6 +246,10 @@ class ThrowingTask:
         taus = self.bounds.check(taus, n=len(thetas))
         if backend == "ray":
             return evaluate_on_ray(self.config, thetas, taus)
+        return self.evaluate_locally(thetas, taus)
+
+    def evaluate_locally(self, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
+        """:meth:`evaluate` in this process (MuJoCo's rollout threads), for checked inputs."""
         landings, release_times, failures, violations = self.throw(thetas)
         # Failures cost more the further the reference is from feasible, so optimisers find their way back.
         rewards = FAILURE_REWARD * (1.0 + violations)
@@ -265,10 +274,10 @@ class ThrowingTask:
         landings = np.zeros((len(thetas), 2))
         if run:
             states, ball = self._rollout(controls[run])
-            for row, i in enumerate(run):
-                failures[i], landing = self._landing(states[row], ball[row], release_step[i])
+            for row, (failure, landing) in enumerate(self._landings(states, ball, release_step[run])):
+                failures[run[row]] = failure
                 if landing is not None:
-                    landings[i] = landing
+                    landings[run[row]] = landing
         release_times = [None if step < 0 else float((step + 1) * self.timestep) for step in release_step]
         return landings, release_times, failures, violations
 
@@ -279,39 +288,52 @@ class ThrowingTask:
             self._pool = rollout.Rollout(nthread=threads)
             self._datas = [mujoco.MjData(self.model) for _ in range(threads)]
         count = len(controls)
+        if self._outputs is None or len(self._outputs[0]) != count:
+            # Reused between calls of the same size: allocating ~20 MB per batch costs more than copying.
+            self._outputs = (
+                np.empty((count, self.n_steps, len(self._initial_state))),
+                np.empty((count, self.n_steps, self.model.nsensordata)),
+            )
         states, sensors = self._pool.rollout(
             self.model,
-            self._datas[:threads],
+            self._datas,
             np.repeat(self._initial_state[None], count, axis=0),
             controls,
             control_spec=self._control_spec,
             initial_warmstart=np.zeros((count, self.model.nv)),  # independent of what a thread ran before
+            state=self._outputs[0],
+            sensordata=self._outputs[1],
         )
         return states, sensors[:, :, :3]
 
-    def _landing(self, states: np.ndarray, ball: np.ndarray, release_step: int):
-        times = states[:, 0]
-        expected = (np.arange(1, len(times) + 1)) * self.timestep
-        if not np.all(np.isfinite(states)):
-            return "the simulation diverged (NaN)", None
-        if np.any(np.abs(times - expected) > 0.5 * self.timestep):
-            return "the simulation diverged (MuJoCo reset the state after a bad acceleration)", None
-        after = np.arange(len(ball)) >= release_step
-        touching = after & (ball[:, 2] <= self.ball_radius)
-        if not touching.any():
-            return f"the ball never lands within {self.config.duration:g} s", None
-        k = int(touching.argmax())
-        if k == 0:
-            return "the ball touches the floor at the release", None
-        above = ball[k - 1, 2] - self.ball_radius
-        fraction = above / (above - (ball[k, 2] - self.ball_radius))
-        return None, ball[k - 1, :2] + fraction * (ball[k, :2] - ball[k - 1, :2])
+    def _landings(self, states: np.ndarray, ball: np.ndarray, release_step: np.ndarray):
+        """(failure, landing) per rollout from its states (N, T, nstate) and ball positions (N, T, 3)."""
+        steps = np.arange(states.shape[1])
+        diverged = ~np.isfinite(states).all(axis=(1, 2))
+        # After a bad acceleration MuJoCo resets the state, and time starts again from zero.
+        reset = (np.abs(states[:, :, 0] - (steps + 1) * self.timestep) > 0.5 * self.timestep).any(axis=1)
+        touching = (steps[None, :] >= release_step[:, None]) & (ball[:, :, 2] <= self.ball_radius)
+        first = touching.argmax(axis=1)
+        results = []
+        for i, k in enumerate(first):
+            if diverged[i]:
+                results.append(("the simulation diverged (NaN)", None))
+            elif reset[i]:
+                results.append(
+                    ("the simulation diverged (MuJoCo reset the state after a bad acceleration)", None)
+                )
+            elif not touching[i, k]:
+                results.append((f"the ball never lands within {self.config.duration:g} s", None))
+            elif k == 0:
+                results.append(("the ball touches the floor at the release", None))
+            else:
+                above = ball[i, k - 1, 2] - self.ball_radius
+                fraction = above / (above - (ball[i, k, 2] - self.ball_radius))
+                results.append((None, ball[i, k - 1, :2] + fraction * (ball[i, k, :2] - ball[i, k - 1, :2])))
+        return results
 
     def close(self) -> None:
-        """Shuts the thread pool down (it is also closed when the task is garbage-collected)."""
+        """Shuts the rollout thread pool down now (otherwise it goes with the task)."""
         if self._pool is not None:
             self._pool.close()
             self._pool = None
-
-    def __del__(self) -> None:
-        self.close()

@@ -40,12 +40,12 @@ from besman.skills.validation import broadcast_vector, finite_array, increasing_
 @dataclass(frozen=True)
 class Trajectory:
     """Sampled trajectories: ``times`` (T,); positions, velocities, accelerations (T, D), or (N, T, D) for a
-    population of N parameter vectors."""
+    population of N parameter vectors (velocities and accelerations may be None when not asked for)."""
 
     times: np.ndarray
     positions: np.ndarray
-    velocities: np.ndarray
-    accelerations: np.ndarray
+    velocities: np.ndarray | None
+    accelerations: np.ndarray | None
 
 
 @dataclass(frozen=True)
@@ -236,20 +236,27 @@ class DMP:
         batch = self.trajectories(thetas[None], run_time=run_time)
         return Trajectory(batch.times, batch.positions[0], batch.velocities[0], batch.accelerations[0])
 
-    def trajectories(self, thetas, *, run_time: float | None = None) -> Trajectory:
+    def trajectories(self, thetas, *, run_time: float | None = None, derivatives: int = 2) -> Trajectory:
         """Trajectories of a whole population: thetas (N, n_params) -> arrays (N, T, n_dims), computed as one
-        matrix product per derivative (no loop over candidates or time steps)."""
+        product per derivative (no loop over candidates or time steps); every candidate's trajectory is
+        bit-identical to generating it alone. ``derivatives`` < 2 skips the accelerations (and < 1 the
+        velocities), which are then None."""
         thetas = finite_array("thetas", thetas)
         if thetas.ndim != 2 or thetas.shape[1] != self.n_params:
             raise ValueError(f"thetas must have shape (N, {self.n_params}), got {thetas.shape}")
+        if derivatives not in (0, 1, 2):
+            raise ValueError(f"derivatives must be 0, 1 or 2, got {derivatives!r}")
         linear_map = self._linear_map(self._run_time(run_time))
-        raw = self._raw(thetas).reshape(-1, self.n_weights + 2)  # (N * n_dims, N + 2)
+        raw = self._raw(thetas)  # (N, n_dims, n_weights + 2)
         start_state = np.column_stack([self.start, self.start_velocity, self.start_acceleration])
-        outputs = []
-        for by_parameters, by_start in zip(linear_map.by_parameters, linear_map.by_start, strict=True):
-            values = (raw @ by_parameters.T).reshape(len(thetas), self.n_dims, -1)
-            values += (start_state @ by_start.T)[None]
-            outputs.append(values.transpose(0, 2, 1))
+        outputs: list[np.ndarray | None] = [None, None, None]
+        for order in range(derivatives + 1):
+            # einsum rather than BLAS: each candidate's numbers then do not depend, in the last bit, on which
+            # other candidates share the batch (BLAS blocking does), so results are the same however a
+            # population is split across threads or machines.
+            values = np.einsum("ndk,tk->ntd", raw, linear_map.by_parameters[order], optimize=False)
+            values += (linear_map.by_start[order] @ start_state.T)[None]
+            outputs[order] = values
         return Trajectory(linear_map.times, *outputs)
 
     # -- imitation -----------------------------------------------------------------------------------------

@@ -23,3 +23,21 @@ def test_dmp_benchmark_reports_every_case_as_json():
     for case in report["cases"]:
         assert case["ratio"] == pytest.approx(case["theirs_s"] / case["ours_s"])
         assert case["ours_s"] > 0 and case["theirs_s"] > 0
+
+
+@pytest.mark.slow
+def test_rollouts_benchmark_reports_ratios_as_json():
+    result = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "rollouts.py"), "--json", "--repeats", "1"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    report = json.loads(result.stdout)
+    throwing = report["throwing"]
+    assert throwing["ours_vs_raw"] == pytest.approx(
+        throwing["ours_steps_per_s"] / throwing["raw_rollout_steps_per_s"]
+    )
+    assert throwing["steps"] == 64 * 1500
+    assert report["pick_and_place"]["succeeded"] == report["pick_and_place"]["episodes"]
+    assert report["pick_and_place"]["real_time_factor"] > 0

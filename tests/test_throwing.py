@@ -1,0 +1,123 @@
+"""The PA-10 throwing task: theta -> DMPs -> rollouts -> landing point -> reward."""
+
+import numpy as np
+import pytest
+
+from besman.sim.throwing import FAILURE_REWARD, HARDWARE_BOUNDS, PAPER_BOUNDS, ThrowingConfig, ThrowingTask
+
+
+@pytest.fixture(scope="module")
+def task():
+    return ThrowingTask()
+
+
+def test_theta_is_96_dimensional_and_bounds_are_the_papers(task):
+    assert task.n_params == 96
+    assert task.bounds == PAPER_BOUNDS
+    assert task.bounds.as_dict() == {"x": [-7.0, -1.0], "y": [-5.0, 1.0]}
+
+
+def test_the_hand_designed_throw_lands_near_the_papers_first_target(task):
+    result = task.evaluate(task.default_theta(), [-3.5, -3.6])
+    detail = result.details[0]
+    assert detail.failure is None
+    assert np.isfinite(result.rewards[0])
+    landing = np.array(detail.landing)
+    assert np.linalg.norm(landing - [-3.5, -3.6]) < 0.3
+    assert result.rewards[0] == pytest.approx(-np.sum((landing - [-3.5, -3.6]) ** 2))
+    assert 0.3 < detail.release_time < task.execution_time + 0.1
+
+
+def test_rewards_are_reproducible_bit_for_bit(task):
+    rng = np.random.default_rng(3)
+    thetas = task.default_theta() + 0.3 * rng.normal(size=(6, task.n_params))
+    taus = np.column_stack([rng.uniform(-7, -1, 6), rng.uniform(-5, 1, 6)])
+    first = task.evaluate(thetas, taus)
+    second = task.evaluate(thetas[::-1].copy(), taus[::-1].copy())  # other order, other threads
+    np.testing.assert_array_equal(first.rewards, second.rewards[::-1])
+    assert first.details == second.details[::-1]
+    fresh = ThrowingTask().evaluate(thetas, taus)
+    np.testing.assert_array_equal(first.rewards, fresh.rewards)
+
+
+def test_landing_is_the_first_floor_contact(task):
+    """The ball's centre reaches its radius above the floor at the landing point, before any bounce."""
+    theta = task.default_theta()
+    landings, _, failures, _ = task.throw(theta[None])
+    assert failures == [None]
+    controls, _, release_step, _ = task.controls(theta[None])
+    _, ball = task._rollout(controls)
+    ground = np.flatnonzero(ball[0, :, 2] <= task.ball_radius + 1e-9)[0]
+    assert ground > release_step[0]
+    segment = ball[0, ground - 1 : ground + 1, :2]
+    assert (
+        np.min(np.linalg.norm(segment - landings[0], axis=1))
+        < np.linalg.norm(segment[1] - segment[0]) + 1e-12
+    )
+
+
+def test_a_throw_that_never_releases_gets_the_failure_penalty(task):
+    theta = task.default_theta().reshape(8, 12)
+    theta[7, 10] = 0.0  # the release dimension's goal stays below the threshold
+    result = task.evaluate(theta.ravel(), [-3.0, -3.0])
+    assert "never released" in result.details[0].failure
+    assert result.rewards[0] <= FAILURE_REWARD
+    assert result.details[0].landing is None
+
+
+def test_a_reference_beyond_the_speed_limits_is_a_failure_that_grows_with_the_violation(task):
+    fast = task.default_theta().reshape(8, 12).copy()
+    fast[1, 11] *= 2.0  # shoulder goal velocity doubled
+    faster = fast.copy()
+    faster[1, 11] *= 1.5
+    result = task.evaluate(np.stack([fast.ravel(), faster.ravel()]), [-3.0, -3.0])
+    assert all("exceeds the speed limit of joint S2" in d.failure for d in result.details)
+    assert result.rewards[1] < result.rewards[0] < FAILURE_REWARD
+
+
+def test_the_hardware_variant_throws_within_the_real_limits():
+    hardware = ThrowingTask(ThrowingConfig(variant="hardware"))
+    assert hardware.bounds == HARDWARE_BOUNDS
+    np.testing.assert_array_equal(hardware.speed_limits, hardware.robot.group("arm").velocity)
+    result = hardware.evaluate(hardware.default_theta(), [-1.2, 0.0])
+    assert result.details[0].failure is None
+    assert np.linalg.norm(np.array(result.details[0].landing) - [-1.15, 0.0]) < 0.2
+
+
+@pytest.mark.parametrize(
+    ("theta", "tau", "message"),
+    [
+        (np.zeros(95), [-3.0, -3.0], "theta must have 96 entries"),
+        (np.full(96, np.nan), [-3.0, -3.0], "theta contains NaN"),
+        (None, [-8.0, -3.0], r"tau x = -8 is outside the task's bounds \[-7, -1\]"),
+        (None, [-3.0, 2.0], r"tau y = 2 is outside the task's bounds \[-5, 1\]"),
+        (None, [-3.0], "tau must have 2 entries"),
+        (None, [[-3.0, -3.0], [-2.0, -2.0]], "got 2 taus for 1 candidates"),
+    ],
+)
+def test_bad_input_is_a_clear_value_error(task, theta, tau, message):
+    with pytest.raises(ValueError, match=message):
+        task.evaluate(task.default_theta() if theta is None else theta, tau)
+    with pytest.raises(ValueError, match="backend must be one of"):
+        task.evaluate(task.default_theta(), [-3.0, -3.0], backend="mpi")
+
+
+def test_unknown_variant():
+    with pytest.raises(ValueError, match="variant must be one of"):
+        ThrowingTask(ThrowingConfig(variant="moon"))
+
+
+@pytest.mark.slow
+def test_ray_backend_gives_identical_landings(task):
+    ray = pytest.importorskip("ray", reason="the 'distributed' extra")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
+    try:
+        rng = np.random.default_rng(11)
+        thetas = task.default_theta() + 0.2 * rng.normal(size=(8, task.n_params))
+        local = task.evaluate(thetas, [-3.5, -3.6])
+        distributed = task.evaluate(thetas, [-3.5, -3.6], backend="ray")
+        np.testing.assert_array_equal(local.rewards, distributed.rewards)
+        assert local.details == distributed.details
+        assert sum(d.failure is None for d in local.details) >= 4
+    finally:
+        ray.shutdown()
