@@ -234,10 +234,22 @@ class ThrowingTask:
 
     # -- evaluation ----------------------------------------------------------------------------------------
 
-    def evaluate(self, thetas, taus, *, backend: str = "threads") -> Evaluation:
+    def evaluate(self, thetas, taus, *, backend: str = "threads", nan: str = "raise") -> Evaluation:
         """Rewards (N,) and :class:`ThrowDetail` per rollout for thetas (N, 96) or (96,) and taus (N, 2) or
-        (2,); the same inputs give the same results, bit for bit, on every backend."""
+        (2,); the same inputs give the same results, bit for bit, on every backend.
+
+        A theta with NaN or inf is bad input (``ValueError``) unless ``nan="penalize"``: then that candidate
+        is a failed throw with the failure penalty and the rest of the batch is evaluated (what an optimiser
+        that may propose broken candidates wants).
+        """
         check_backend(backend)
+        if nan not in ("raise", "penalize"):
+            raise ValueError(f"nan must be 'raise' or 'penalize', got {nan!r}")
+        if nan == "penalize":
+            thetas = np.array(thetas, dtype=float, ndmin=2)
+            broken = ~np.isfinite(thetas).all(axis=1) if thetas.ndim == 2 else np.zeros(0, dtype=bool)
+            if broken.any():
+                return self._with_broken(thetas, taus, broken, backend)
         thetas = finite_array("theta", thetas)
         if thetas.ndim == 1:
             thetas = thetas[None]
@@ -247,6 +259,19 @@ class ThrowingTask:
         if backend == "ray":
             return evaluate_on_ray(self.config, thetas, taus)
         return self.evaluate_locally(thetas, taus)
+
+    def _with_broken(self, thetas: np.ndarray, taus, broken: np.ndarray, backend: str) -> Evaluation:
+        """Evaluates the finite candidates and gives the broken ones the failure penalty, in order."""
+        taus = self.bounds.check(taus, n=len(thetas))
+        rewards = np.full(len(thetas), FAILURE_REWARD)
+        details: list[ThrowDetail] = [ThrowDetail(None, None, "theta contains NaN or inf")] * len(thetas)
+        good = np.flatnonzero(~broken)
+        if good.size:
+            evaluated = self.evaluate(thetas[good], taus[good], backend=backend)
+            rewards[good] = evaluated.rewards
+            for index, detail in zip(good, evaluated.details, strict=True):
+                details[index] = detail
+        return Evaluation(rewards, tuple(details))
 
     def evaluate_locally(self, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
         """:meth:`evaluate` in this process (MuJoCo's rollout threads), for checked inputs."""

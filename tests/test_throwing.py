@@ -102,6 +102,17 @@ def test_bad_input_is_a_clear_value_error(task, theta, tau, message):
         task.evaluate(task.default_theta(), [-3.0, -3.0], backend="mpi")
 
 
+def test_a_broken_theta_can_get_the_failure_penalty_instead_of_an_error(task):
+    thetas = np.tile(task.default_theta(), (3, 1))
+    thetas[1, 5] = np.nan
+    result = task.evaluate(thetas, [-3.5, -3.6], nan="penalize")
+    assert result.rewards[1] == FAILURE_REWARD
+    assert result.details[1].failure == "theta contains NaN or inf"
+    assert result.rewards[0] == result.rewards[2] > FAILURE_REWARD
+    with pytest.raises(ValueError, match="theta contains NaN"):
+        task.evaluate(thetas, [-3.5, -3.6])
+
+
 def test_unknown_variant():
     with pytest.raises(ValueError, match="variant must be one of"):
         ThrowingTask(ThrowingConfig(variant="moon"))
