@@ -9,13 +9,11 @@ on the shelf board, inside :data:`PICK_PLACE_BOUNDS`:
 Both boxes lie where the right arm, turning the waist, reaches top-down grasps and the poses above them
 with every joint at least 5 % of its range away from its limits for some grasp yaw (scanned on a grid).
 
-The episode is a scripted sequence of joint-space movement primitives executed by the Ruckig executor
-(straight vertical moves are DMPs imitating inverse-kinematics solutions along the line): open the gripper,
-approach above the object, descend, grasp (close; a grasp is required), lift, transport above the place,
-place, release, retreat. Before moving, the plan picks for grasp and place the hand yaw (across a pair of
-the box's faces) for which every pose is reachable and collision-free and the vertical moves stay close to
-a straight line (5 mm near the box), keeping farthest from the joint limits. theta tunes the plan
-(:class:`PickPlacePlan`); ``default_theta()`` is the hand-made plan.
+The episode is a scripted sequence of joint-space movement primitives planned by
+:mod:`besman.sim.manipulation` and executed by the Ruckig executor: open the gripper, approach above the
+object, descend, grasp (close; a grasp is required), lift, transport above the place, place, release,
+retreat. theta tunes the plan (:class:`~besman.sim.manipulation.PickPlacePlan`); ``default_theta()`` is the
+hand-made plan.
 
 Success: the box was lifted at least 5 cm and carried in the hand until the release (not dropped), then
 stands upright (tilt < 10 deg) on the shelf within 2 cm of the place target. Metrics per episode: placement
@@ -25,12 +23,11 @@ error, simulated time, largest contact force on the box, and which step failed a
 from __future__ import annotations
 
 import math
-from dataclasses import astuple, dataclass, fields
+from dataclasses import dataclass, fields
 
 import mujoco
 import numpy as np
 
-import besman.robots as robots
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
 from besman.sim.executor import (
     Executor,
@@ -40,55 +37,15 @@ from besman.sim.executor import (
     MotionStatus,
     limit_violations,
 )
-from besman.sim.primitives import point_to_point, straight_line, top_down
+from besman.sim.manipulation import OPEN, PickPlacePlan, PlanningError, plan_pick, plan_place
 from besman.sim.tasks import TaskBounds
 from besman.sim.world import DEFAULT_BOX, SHELF, TABLE, GraspableObject, World, tabletop_world
-from besman.skills import Trajectory
 from besman.skills.validation import finite_array
 
 PICK_PLACE_BOUNDS = TaskBounds(
     ("object_x", "object_y", "place_x", "place_y"), (0.45, -0.15, 0.45, -0.48), (0.62, 0.00, 0.62, -0.34)
 )
 FAILURE_REWARD = -1.0
-OPEN = 0.045  # finger opening (m per finger) before grasping and for releasing: a 9 cm aperture
-# The fingers close across a pair of the box's faces (yaw 0 or 90 deg, up to 15 deg off); the hand's own
-# symmetry makes yaws 180 deg apart the same grasp.
-GRASP_YAWS = np.radians([0.0, 15.0, -15.0, -90.0, -75.0, 75.0])
-
-
-@dataclass(frozen=True)
-class PickPlacePlan:
-    """The parameters of the scripted plan; theta is these numbers in this order."""
-
-    approach_height: float = 0.10  # m above the grasp point before descending
-    clearance: float = 0.06  # m between the box's bottom and the shelf top at the ends of the transport
-    grasp_height: float = 0.01  # m above the box's centre where the fingers close (the tips clear the table)
-    release_height: float = 0.003  # m above the shelf where the box is let go
-    transport_time: float = 2.0  # s
-    descend_time: float = 1.0  # s for each descent, lift and retreat
-
-    @classmethod
-    def from_theta(cls, theta) -> PickPlacePlan:
-        theta = finite_array("theta", theta)
-        if theta.shape != (len(fields(cls)),):
-            raise ValueError(
-                f"theta must have {len(fields(cls))} entries "
-                f"({', '.join(f.name for f in fields(cls))}), got shape {theta.shape}"
-            )
-        plan = cls(*(float(v) for v in theta))
-        if not (
-            0.03 <= plan.approach_height <= 0.3
-            and 0.0 <= plan.clearance <= 0.3
-            and plan.transport_time >= 0.3
-            and plan.descend_time >= 0.3
-            and abs(plan.grasp_height) <= 0.03
-            and 0.0 <= plan.release_height <= 0.05
-        ):
-            raise ValueError(f"theta is outside the plan's valid ranges: {plan}")
-        return plan
-
-    def theta(self) -> np.ndarray:
-        return np.array(astuple(self))
 
 
 @dataclass(frozen=True)
@@ -166,157 +123,36 @@ class PickPlaceTask:
         return Evaluation(rewards, details)
 
 
-@dataclass(frozen=True)
-class _Leg:
-    """A planned stretch of an episode: three hand poses of one orientation, the joint configurations that
-    reach them, and the references of the two straight moves between them."""
-
-    configurations: tuple[np.ndarray, np.ndarray, np.ndarray]
-    references: tuple[Trajectory, Trajectory]
-    clearance: float  # smallest distance to a joint limit along the references, as a fraction of the range
-
-
-# How far (m) the hand may stray from the straight line in each vertical move: near the box the fingers
-# have 1.5 cm on either side; lifting and retreating only need to stay clear of the furniture.
-MAX_DEVIATION = {"descend": 0.005, "place": 0.005, "lift": 0.02, "retreat": 0.02}
-
-
-def _plan_leg(
-    executor: Executor,
-    start: np.ndarray,
-    positions: list[np.ndarray],
-    names: tuple[str, str],
-    duration: float,
-    allowed: tuple[str, ...],
-) -> _Leg | None:
-    """The best hand yaw for three top-down poses reached one after the other from the configuration
-    ``start``: each reachable (solved from the previous one), collision-free except with ``allowed`` bodies,
-    and the joint-space moves between them (``names``) staying within :data:`MAX_DEVIATION` of a straight
-    line. Among the yaws that work, the one whose moves keep farthest from the joint limits."""
-    best: _Leg | None = None
-    span = executor.upper - executor.lower
-    for yaw in GRASP_YAWS:
-        orientation, configurations, qpos = top_down(yaw), [], executor.full_qpos(start)
-        for index, position in enumerate(positions):
-            result = robots.solve_ik(
-                executor.world.robot,
-                executor.groups,
-                position,
-                orientation,
-                site=executor.site,
-                initial_qpos=qpos,
-                restarts=4 if index == 0 else 0,
-                joint_weights=executor.max_acceleration,
-            )
-            if not result.success or executor.collisions(result.qpos, allowed):
-                break
-            configurations.append(result.qpos)
-            qpos[executor.qpos_indices] = result.qpos
-        else:
-            primitives = [
-                straight_line(name, a, b, orientation, executor, duration)
-                for name, a, b in zip(names, configurations[:-1], positions[1:], strict=True)
-            ]
-            if any(primitive is None for primitive in primitives):
-                continue
-            references = tuple(
-                executor.primitive_reference(primitive, start=a)
-                for primitive, a in zip(primitives, configurations[:-1], strict=True)
-            )
-            configurations[1:] = [reference.positions[-1] for reference in references]
-            straight = all(
-                _deviation(executor, reference, a, b) < MAX_DEVIATION[name]
-                for name, reference, a, b in zip(
-                    names, references, positions[:-1], positions[1:], strict=True
-                )
-            )
-            joints = np.concatenate([reference.positions for reference in references])
-            if straight and not any(
-                executor.collisions(q, allowed) for q in joints[:: max(1, len(joints) // 20)]
-            ):
-                clearance = float((np.minimum(joints - executor.lower, executor.upper - joints) / span).min())
-                if best is None or clearance > best.clearance:
-                    best = _Leg(tuple(configurations), references, clearance)
-    return best
-
-
-def _site_path(executor: Executor, reference: Trajectory, samples: int = 20) -> np.ndarray:
-    """Positions of the executor's site along a joint reference (about ``samples`` of them)."""
-    return np.array(
-        [
-            robots.forward_kinematics(executor.world.robot, executor.full_qpos(q), executor.site).position
-            for q in reference.positions[:: max(1, len(reference.times) // samples)]
-        ]
-    )
-
-
-def _deviation(executor: Executor, reference: Trajectory, start: np.ndarray, end: np.ndarray) -> float:
-    """Largest distance of the site's path along a joint reference from the straight segment start-end."""
-    path = _site_path(executor, reference)
-    direction = (end - start) / np.linalg.norm(end - start)
-    offsets = path - start
-    return float(np.linalg.norm(offsets - np.outer(offsets @ direction, direction), axis=1).max())
-
-
 def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: PickPlacePlan) -> PickPlaceDetail:
     """Resets ``world``, places the box at tau's object position, plans and runs the scripted sequence."""
     world.reset()
     object_xy, place_xy = tau[:2], tau[2:]
     world.place_on(item.name, TABLE.name, *object_xy)
     executor = Executor(world)
-    grasp_z = TABLE.height + item.half_height + plan.grasp_height
-    carry_z = SHELF.height + plan.clearance + item.half_height + plan.grasp_height
-    place_z = SHELF.height + plan.release_height + item.half_height + plan.grasp_height
-    pick = _plan_leg(
-        executor,
-        executor.position,
-        [
-            np.r_[object_xy, grasp_z + plan.approach_height],
-            np.r_[object_xy, grasp_z],
-            np.r_[object_xy, carry_z],
-        ],
-        ("descend", "lift"),
-        plan.descend_time,
-        allowed=(item.name,),
-    )
-    if pick is None:
-        return _failure(world, "plan", "no reachable, collision-free top-down grasp of the object")
-    put = _plan_leg(
-        executor,
-        pick.configurations[-1],
-        [np.r_[place_xy, carry_z], np.r_[place_xy, place_z], np.r_[place_xy, place_z + plan.approach_height]],
-        ("place", "retreat"),
-        plan.descend_time,
-        allowed=(item.name,),
-    )
-    if put is None:
-        return _failure(world, "plan", "no reachable, collision-free top-down placement at the target")
-    transport = executor.primitive_reference(
-        point_to_point(
-            "transport", pick.configurations[-1], put.configurations[0], executor, plan.transport_time
-        ),
-        start=pick.configurations[-1],
-    )
-    # The joint-space transport cannot run into a joint limit, but its hand path must stay over the shelf.
-    lowest = float(_site_path(executor, transport, 40)[:, 2].min())
-    if lowest - item.half_height - plan.grasp_height < SHELF.height + 0.01:
-        return _failure(world, "plan", f"the transport would sweep the box {lowest:.3f} m low over the shelf")
-    approach = executor.primitive_reference(
-        point_to_point("approach", executor.position, pick.configurations[0], executor)
-    )
+    try:
+        pick = plan_pick(executor, item, object_xy, plan)
+        put = plan_place(executor, item, pick.lifted, place_xy, plan)
+    except PlanningError as error:
+        return _failure(world, "plan", str(error))
     steps = [
         GripperMotion("open", opening=OPEN),
-        FollowReference("approach", reference=approach),
-        FollowReference("descend", reference=pick.references[0]),
+        pick.approach,
+        pick.descend,
         GripperMotion("grasp", opening=0.0, expect_grasp=True, grasp_object=item.name),
-        FollowReference("lift", reference=pick.references[1]),
-        FollowReference("transport", reference=transport),
-        FollowReference("place", reference=put.references[0]),
+        pick.lift,
+        put.transport,
+        put.place,
         GripperMotion("release", opening=OPEN),
-        FollowReference("retreat", reference=put.references[1]),
+        put.retreat,
     ]
     monitor = _BoxMonitor(world, item.name, executor)
-    for motion in steps:
+    for step in steps:
+        # Primitives start where the previous motion left the robot.
+        motion = (
+            step
+            if isinstance(step, Motion)
+            else FollowReference(step.name, executor.primitive_reference(step))
+        )
         _run(executor, motion, monitor)
         if motion.status is not MotionStatus.SUCCEEDED:
             return _failure(world, motion.name, motion.message, monitor)

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from besman.sim.pick_place import PICK_PLACE_BOUNDS, PickPlacePlan, PickPlaceTask
+from besman.sim.manipulation import PickPlacePlan
+from besman.sim.pick_place import PICK_PLACE_BOUNDS, PickPlaceTask
 
 
 @pytest.fixture(scope="module")
