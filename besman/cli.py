@@ -7,6 +7,7 @@ import json
 import os
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from besman._version import __version__
 
@@ -93,6 +94,101 @@ def _robots_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _tree_show(args: argparse.Namespace) -> int:
+    import py_trees
+
+    from besman.trees import load_tree
+
+    print(py_trees.display.unicode_tree(load_tree(args.file)))
+    return 0
+
+
+def _tree_render(args: argparse.Namespace) -> int:
+    import py_trees
+
+    from besman.skills.storage import write_atomically
+    from besman.trees import load_tree
+
+    out = Path(args.out)
+    formats = {".svg": "svg", ".png": "png", ".dot": "raw"}
+    if out.suffix.lower() not in formats:
+        raise ValueError(f"{out}: the output file must end in .svg, .png or .dot")
+    graph = py_trees.display.dot_tree(load_tree(args.file))
+    try:
+        data = graph.create(format=formats[out.suffix.lower()])
+    except (FileNotFoundError, OSError) as error:
+        raise RuntimeError(
+            f"rendering needs Graphviz's dot program (apt-get install graphviz): {error}"
+        ) from None
+    print(write_atomically(out, data))
+    return 0
+
+
+def _parse_sets(pairs: Sequence[str]) -> dict[str, tuple[float, ...]]:
+    values = {}
+    for pair in pairs:
+        name, equals, text = pair.partition("=")
+        if not equals or not name:
+            raise ValueError(f"--set {pair!r}: expected name=value[,value...]")
+        try:
+            values[name] = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            raise ValueError(f"--set {pair!r}: the values must be numbers separated by commas") from None
+    return values
+
+
+def _print_summary(summary: dict, as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(summary, indent=2))
+        return
+    print(
+        f"{summary['status']}: placement error {summary['placement_error_m'] * 100:.1f} cm, "
+        f"{summary['sim_time_s']:.1f} s simulated in {summary['wall_time_s']:.1f} s, {summary['ticks']} ticks"
+    )
+    if summary["failed_node"]:
+        print(f"failed at {summary['failed_node']}: {summary['message']}")
+
+
+def _run(args: argparse.Namespace) -> int:
+    from besman.trees.runner import run_on_tabletop
+
+    summary = run_on_tabletop(args.file, _parse_sets(args.set), seed=args.seed, log=args.log)
+    _print_summary(summary, args.json)
+    return 0 if summary["status"] == "SUCCESS" else 1
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from besman.trees import grasp_then_place
+    from besman.trees.runner import run_on_tabletop
+
+    print("AILA grasps the box on the table and places it on the shelf (grasp-then-place tree)")
+    summary = run_on_tabletop(
+        grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, log=args.log
+    )
+    _print_summary(summary, args.json)
+    return 0 if summary["status"] == "SUCCESS" else 1
+
+
+TASKS = ("pick-place", "throwing", "throwing-hardware")
+
+
+def _tasks_show(args: argparse.Namespace) -> int:
+    if args.name == "pick-place":
+        from besman.sim.pick_place import PICK_PLACE_BOUNDS as bounds
+    elif args.name in ("throwing", "throwing-hardware"):
+        from besman.sim.throwing import HARDWARE_BOUNDS, PAPER_BOUNDS
+
+        bounds = PAPER_BOUNDS if args.name == "throwing" else HARDWARE_BOUNDS
+    else:
+        raise ValueError(f"unknown task {args.name!r}; tasks: {', '.join(TASKS)}")
+    if args.json:
+        print(json.dumps({"task": args.name, "bounds": bounds.as_dict()}, indent=2))
+    else:
+        for name, (low, high) in bounds.as_dict().items():
+            print(f"{name}\t[{low:g}, {high:g}]")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="besman", description=__doc__)
     parser.add_argument("--version", action="version", version=f"besman {__version__}")
@@ -112,6 +208,42 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--height", type=int, default=720)
     render.add_argument("--keyframe", default=None, help="keyframe to show (default: home)")
     render.set_defaults(handler=_robots_render)
+
+    tree = commands.add_parser("tree", help="show or render a tree file")
+    tree_commands = tree.add_subparsers(dest="tree_command", metavar="ACTION", required=True)
+    tree_show = tree_commands.add_parser("show", help="print the tree")
+    tree_show.add_argument("file")
+    tree_show.set_defaults(handler=_tree_show)
+    tree_render = tree_commands.add_parser("render", help="draw the tree with Graphviz")
+    tree_render.add_argument("file")
+    tree_render.add_argument("--out", required=True, help="output .svg, .png or .dot")
+    tree_render.set_defaults(handler=_tree_render)
+
+    run = commands.add_parser("run", help="run a tree file on AILA's tabletop")
+    run.add_argument("file")
+    run.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE[,VALUE]",
+        help="object=x,y (where the box stands), place=x,y (where it goes), or any /task value",
+    )
+    run.add_argument("--seed", type=int, default=None, help="draws object and place when not set")
+    run.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
+    run.add_argument("--json", action="store_true", help="print the summary as JSON")
+    run.set_defaults(handler=_run)
+
+    demo = commands.add_parser("demo", help="grasp-then-place at a default configuration")
+    demo.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
+    demo.add_argument("--json", action="store_true", help="print the summary as JSON")
+    demo.set_defaults(handler=_demo)
+
+    tasks = commands.add_parser("tasks", help="the tasks' parameters")
+    task_commands = tasks.add_subparsers(dest="tasks_command", metavar="ACTION", required=True)
+    task_show = task_commands.add_parser("show", help=f"a task's parameter bounds ({', '.join(TASKS)})")
+    task_show.add_argument("name")
+    task_show.add_argument("--json", action="store_true")
+    task_show.set_defaults(handler=_tasks_show)
     return parser
 
 
@@ -125,7 +257,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     try:
         return args.handler(args)
-    except (ValueError, KeyError, RuntimeError, OSError) as error:
+    except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)
         return 2

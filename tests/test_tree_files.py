@@ -1,0 +1,195 @@
+"""Tree files: precise errors before anything runs, includes with remapping, round trips."""
+
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from besman.skills import DMP, MovementPrimitive
+from besman.trees import TreeFileError, describe, dump_tree, load_tree, loads_tree
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "trees"
+
+
+def write(folder: Path, name: str, text: str) -> Path:
+    path = folder / name
+    path.write_text(textwrap.dedent(text).lstrip())
+    return path
+
+
+def test_the_example_loads_with_its_includes_and_remapping():
+    root = load_tree(EXAMPLES / "grasp_then_place.yaml")
+    described = describe(root)
+    place = described["Retry"]["child"]["Sequence"]["children"][1]["Place"]
+    assert place["remap"] == {"target": "/task/place"}, "the include's remap reached the subtree"
+    grasp = described["Retry"]["child"]["Sequence"]["children"][0]["Selector"]["children"][1]
+    assert grasp["Grasp"]["attempts"] == 2
+
+
+@pytest.mark.parametrize("name", ["grasp_then_place.yaml", "grasp.yaml", "place.yaml"])
+def test_valid_files_round_trip_to_the_same_tree(name):
+    root = load_tree(EXAMPLES / name)
+    again = loads_tree(dump_tree(root), base=EXAMPLES)
+    assert describe(again) == describe(root)
+    assert dump_tree(again) == dump_tree(root)
+
+
+def test_primitives_are_referenced_by_file_and_round_trip(tmp_path):
+    MovementPrimitive(DMP(8, goal=0.1), "wave").save(tmp_path / "wave.json")
+    path = write(
+        tmp_path,
+        "wave.yaml",
+        """
+        besman_tree: 1
+        root:
+          Sequence:
+            name: greet
+            children:
+              - ExecutePrimitive: {name: wave, primitive: wave.json, timeout: 5}
+              - Wait: {name: pause, duration: 0.5}
+    """,
+    )
+    root = load_tree(path)
+    leaf = root.children[0]
+    assert leaf.primitive.name == "wave" and leaf.timeout == 5.0
+    assert describe(loads_tree(dump_tree(root), base=tmp_path)) == describe(root)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            """
+         besman_tree: 1
+         root:
+           Sequnce: {name: oops, children: [{Wait: {name: w, duration: 1}}]}
+         """,
+            r"bad.yaml:3: root: unknown node type 'Sequnce'; known: Sequence, Selector",
+        ),
+        (
+            """
+         besman_tree: 1
+         root:
+           Sequence:
+             name: s
+             children:
+               - Wait: {name: w}
+         """,
+            r"bad.yaml:6: root.Sequence.children\[0\].Wait: missing parameter 'duration'",
+        ),
+        (
+            """
+         besman_tree: 1
+         root:
+           Sequence:
+             name: s
+             children:
+               - Wait:
+                   name: w
+                   duration: soon
+         """,
+            r"bad.yaml:8: root.Sequence.children\[0\].Wait.duration: expected a number, got 'soon'",
+        ),
+        (
+            """
+         besman_tree: 1
+         root:
+           Retry: {name: r, attempts: 2.5, child: {Wait: {name: w, duration: 1}}}
+         """,
+            r"bad.yaml:3: root.Retry.attempts: expected an integer, got '2.5'",
+        ),
+        (
+            """
+         besman_tree: 1
+         root:
+           Wait: {name: w, duration: 1, color: red}
+         """,
+            r"bad.yaml:3: root.Wait.color: unknown parameter; Wait takes name, duration",
+        ),
+        (
+            """
+         besman_tree: 1
+         root:
+           Sequence:
+             name: s
+             children:
+               - include: nowhere.yaml
+         """,
+            r"bad.yaml:6: root.Sequence.children\[0\].include: no such file .*nowhere.yaml",
+        ),
+        (
+            """
+         besman_tree: 1
+         root:
+           Gripper: {name: g, action: squeeze}
+         """,
+            r"bad.yaml:3: root.Gripper: g: action must be 'open' or 'close'",
+        ),
+        (
+            """
+         besman_tree: 1
+         root:
+           ExecutePrimitive: {name: e, primitive: missing.json}
+         """,
+            r"bad.yaml:3: root.ExecutePrimitive.primitive: .*missing.json: no such file",
+        ),
+        (
+            """
+         besman_tree: 2
+         root:
+           Wait: {name: w, duration: 1}
+         """,
+            r"bad.yaml:1: besman_tree: expected 1",
+        ),
+        (
+            """
+         besman_tree: 1
+         root: [
+         """,
+            r"bad.yaml:\d+: not valid YAML",
+        ),
+        (
+            """
+         besman_tree: 1
+         root:
+           InstantiateSkillTemplate: {name: t, template: "nowhere:thing"}
+         """,
+            r"bad.yaml:3: root.InstantiateSkillTemplate.template: cannot import the template 'nowhere:thing'",
+        ),
+    ],
+)
+def test_every_problem_names_file_line_and_path(tmp_path, text, message):
+    path = write(tmp_path, "bad.yaml", text)
+    with pytest.raises(TreeFileError, match=message):
+        load_tree(path)
+
+
+def test_a_cycle_of_includes_is_reported(tmp_path):
+    write(
+        tmp_path,
+        "a.yaml",
+        """
+        besman_tree: 1
+        root:
+          Sequence:
+            name: a
+            children:
+              - include: b.yaml
+    """,
+    )
+    write(
+        tmp_path,
+        "b.yaml",
+        """
+        besman_tree: 1
+        root:
+          include: a.yaml
+    """,
+    )
+    with pytest.raises(TreeFileError, match=r"includes form a cycle: .*a.yaml -> .*b.yaml -> .*a.yaml"):
+        load_tree(tmp_path / "a.yaml")
+
+
+def test_a_missing_tree_file():
+    with pytest.raises(TreeFileError, match=r"nothing\.yaml: no such file"):
+        load_tree("nothing.yaml")

@@ -1,0 +1,164 @@
+"""Behaviour trees on the simulated AILA: leaves, failure propagation, slips, pre-emption, sim-time limits."""
+
+import numpy as np
+import py_trees
+import pytest
+from py_trees.common import Status
+
+from besman.sim.executor import Executor, MotionStatus, Stop, limit_violations
+from besman.sim.world import TABLE, tabletop_world
+from besman.skills import DMP, MovementPrimitive
+from besman.trees import (
+    ExecutePrimitive,
+    Gripper,
+    InstantiateSkillTemplate,
+    ObjectAt,
+    ObjectGrasped,
+    Runner,
+    SimTimeout,
+    Wait,
+    grasp_then_place,
+)
+from besman.trees.blackboard import set_task_values
+
+HOME_SHIFT = np.array([0.3, -0.3, -0.3, 0.5, -0.5, 0.4, 0.3, 0.4])  # stays in range, clear of the table
+
+
+@pytest.fixture
+def executor():
+    py_trees.blackboard.Blackboard.clear()
+    world = tabletop_world()
+    world.place_on("box", TABLE.name, 0.55, -0.08)
+    return Executor(world)
+
+
+def move(executor, name, shift=1.0, duration=2.0):
+    dmp = DMP(executor.dofs, execution_time=duration, goal=executor.position + shift * HOME_SHIFT)
+    return MovementPrimitive(dmp, name)
+
+
+def test_a_primitive_leaf_runs_until_the_motion_arrives(executor):
+    leaf = ExecutePrimitive("move", primitive=move(executor, "move"))
+    result = Runner(leaf, executor).run()
+    assert result.status == "SUCCESS"
+    assert result.sim_time_s == pytest.approx(2.0, abs=0.3)
+    np.testing.assert_allclose(executor.measured_position(), executor.position, atol=0.01)
+
+
+def test_failure_propagates_with_the_failing_leaf_and_its_reason(executor):
+    root = py_trees.composites.Sequence(
+        "task",
+        memory=True,
+        children=[
+            ExecutePrimitive("move", primitive=move(executor, "move", duration=1.0)),
+            Gripper("grab air", action="close", expect_grasp=True, object="box"),
+            Wait("never reached", duration=1.0),
+        ],
+    )
+    result = Runner(root, executor).run()
+    assert result.status == "FAILURE"
+    assert result.failed_node == "task/grab air"
+    assert "closed on nothing" in result.message
+    assert root.children[2].status is Status.INVALID
+
+
+def test_preemption_brakes_the_robot_to_rest(executor):
+    """A slow motion under a 1 s sim-time timeout: the timeout pre-empts it and the executor brakes."""
+    leaf = ExecutePrimitive("slow", primitive=move(executor, "slow", duration=4.0))
+    root = SimTimeout("one second", leaf, duration=1.0)
+    runner = Runner(root, executor)
+    result = runner.run()
+    assert result.status == "FAILURE"
+    assert "timed out after 1 s of simulated time" in result.message
+    assert result.sim_time_s == pytest.approx(1.0, abs=0.05), "simulated time, not wall time"
+    assert isinstance(executor.motion, Stop)
+    assert np.abs(executor.velocity).max() > 0.05, "it was moving when pre-empted"
+    for _ in range(1000):
+        executor.tick()
+    assert executor.motion.status is MotionStatus.SUCCEEDED
+    assert np.abs(executor.velocity).max() < 1e-6
+    assert limit_violations(executor.log, executor) == []
+
+
+def test_wait_counts_simulated_time(executor):
+    result = Runner(Wait("pause", duration=0.7), executor).run()
+    assert result.status == "SUCCESS"
+    assert result.sim_time_s == pytest.approx(0.7, abs=0.03)
+
+
+def test_a_leaf_without_the_executor_is_a_clear_error():
+    with pytest.raises(KeyError, match="setup\\(\\) needs executor="):
+        ExecutePrimitive("move", primitive=MovementPrimitive(DMP(8), "m")).setup()
+
+
+class GoalTemplate:
+    """A stand-in skill template: tau is a shift of the home pose along HOME_SHIFT."""
+
+    def __init__(self, home):
+        self.home = home
+
+    def instantiate(self, tau):
+        dmp = DMP(len(self.home), execution_time=1.0, goal=self.home + float(tau[0]) * HOME_SHIFT)
+        return MovementPrimitive(dmp, f"shift {float(tau[0]):g}")
+
+
+def test_a_template_is_instantiated_from_the_blackboard_and_executed(executor):
+    set_task_values({"shift": [0.5]})
+    pool = {"shift": GoalTemplate(executor.position.copy())}
+    root = py_trees.composites.Sequence(
+        "templated",
+        memory=True,
+        children=[
+            InstantiateSkillTemplate(
+                "instantiate",
+                pool=pool,
+                template_name="shift",
+                namespace="shift",
+                remap={"tau": "/task/shift"},
+            ),
+            ExecutePrimitive("execute", namespace="shift"),
+        ],
+    )
+    result = Runner(root, executor).run()
+    assert result.status == "SUCCESS", result.message
+    np.testing.assert_allclose(executor.measured_position(), pool["shift"].home + 0.5 * HOME_SHIFT, atol=0.01)
+    missing = InstantiateSkillTemplate("missing", pool=pool, template_name="wave", namespace="other")
+    assert Runner(missing, executor).run().message == "the pool has no template 'wave'"
+
+
+def test_grasp_then_place_recovers_from_a_slip(executor):
+    """The box is pulled out of the hand during the transport: the guard fails the placement, the retry
+    finds the box not held, grasps it where it now lies and places it."""
+    set_task_values({"place": [0.54, -0.41]})
+    root = grasp_then_place()
+    runner = Runner(root, executor)
+    runner.tree.setup(executor=executor)
+    slipped = False
+    status = Status.RUNNING
+    while status is Status.RUNNING and executor.time < 60:
+        runner.tree.tick()
+        status = root.status
+        transporting = any(
+            node.name == "transport" and node.status is Status.RUNNING for node in root.iterate()
+        )
+        if transporting and not slipped and executor.time > 7.0:
+            executor.world.place_on("box", TABLE.name, 0.50, -0.12)  # out of the hand, back on the table
+            slipped = True
+        for _ in range(runner.cycles_per_tick):
+            executor.tick()
+    assert slipped
+    assert status is Status.SUCCESS
+    assert root.feedback_message.startswith("succeeded [status: 1 failure")
+    box = executor.world.object_pose("box").position
+    assert np.linalg.norm(box[:2] - [0.54, -0.41]) < 0.02
+    assert limit_violations(executor.log, executor) == []
+
+
+def test_conditions_report_what_they_see(executor):
+    assert Runner(ObjectGrasped("held?", object="box"), executor).run().status == "FAILURE"
+    near = ObjectAt("there?", object="box", position=[0.55, -0.08], tolerance=0.01)
+    assert Runner(near, executor).run().status == "SUCCESS"
+    far = ObjectAt("elsewhere?", object="box", position=[0.45, -0.08])
+    result = Runner(far, executor).run()
+    assert result.status == "FAILURE"
+    assert "box is 10.0 cm from [0.45, -0.08]" in result.message

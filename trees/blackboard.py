@@ -1,0 +1,42 @@
+"""The blackboard layout of besman trees, in one place.
+
+Keys are grouped by skill instance: each instance has its own namespace (``/grasp``, ``/place``, ...), so two
+instances of a skill never share keys. Leaves address keys by role; ``namespace`` and ``remap`` choose the
+key (:mod:`besman.trees.base`). Defaults:
+
+- ``/task/place`` - the place target (x, y); written by the runner (``--set place=x,y``), read by
+  ``Place`` through its ``target`` remapped to it.
+- ``/task/<name>`` - numbers given on the command line (``--set name=...``); read by leaves remapped to them.
+- ``/<ns>/object_position`` - (x, y, z) of the object; ``PerceiveObject`` writes, ``PlanGrasp`` reads.
+- ``/<ns>/approach``, ``/<ns>/descend``, ``/<ns>/lift`` - movement primitives; ``PlanGrasp`` writes, the
+  ``ExecutePrimitive`` leaves of the grasp subtree read.
+- ``/<ns>/target`` - (x, y) or (x, y, z); the tree's author or a remap provides it, ``PlanPlace`` and
+  ``ObjectAt`` read it.
+- ``/<ns>/transport``, ``/<ns>/place``, ``/<ns>/retreat`` - movement primitives; ``PlanPlace`` writes, the
+  place subtree's ``ExecutePrimitive`` leaves read.
+- ``/<ns>/tau`` - task parameters; provided by the author or a remap, read by ``InstantiateSkillTemplate``.
+- ``/<ns>/primitive`` - a movement primitive; ``InstantiateSkillTemplate`` writes, ``ExecutePrimitive`` reads.
+- ``/<ns>/configuration`` - joint values; provided by the author or a remap, read by ``AtPose``.
+
+:func:`set_task_values` writes the ``/task`` values of a run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+import py_trees
+
+TASK_NAMESPACE = "/task"
+
+
+def set_task_values(values: Mapping[str, object]) -> None:
+    """Writes ``/task/<name>`` for each value (through a client of its own, as py_trees wants)."""
+    client = py_trees.blackboard.Client(name="task values")
+    for name, value in values.items():
+        key = f"{TASK_NAMESPACE}/{name}"
+        client.register_key(key=key, access=py_trees.common.Access.WRITE)
+        client.set(
+            key, np.asarray(value, dtype=float) if not isinstance(value, str) else value, overwrite=True
+        )

@@ -1,0 +1,97 @@
+"""Conditions on the simulated world: SUCCESS when true, FAILURE (with the reason) when not.
+
+- :class:`ObjectGrasped` - both finger pads touch the object and it moves with the hand.
+- :class:`ObjectAt` - an object's position is within a tolerance of a target (given, or read from the
+  blackboard role ``target``; an (x, y) target ignores the height).
+- :class:`AtPose` - the executor's joints are within a tolerance of a configuration (given, or role
+  ``configuration``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from py_trees.common import Access, Status
+
+from besman.trees.base import SimulationBehaviour
+
+
+class ObjectGrasped(SimulationBehaviour):
+    """Is ``object`` held by the executor's gripper?"""
+
+    def __init__(
+        self, name: str, *, object: str, namespace: str = "", remap: Mapping[str, str] | None = None
+    ):
+        super().__init__(name, namespace=namespace, remap=remap)
+        self.object = object
+
+    def update(self) -> Status:
+        if self.executor.holds(self.object):
+            self.feedback_message = f"holding {self.object}"
+            return Status.SUCCESS
+        touching = self.executor.touching(self.object)
+        self.feedback_message = (
+            f"not holding {self.object} (finger pads touching: {touching[0]}, {touching[1]})"
+        )
+        return Status.FAILURE
+
+
+class ObjectAt(SimulationBehaviour):
+    """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``?"""
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        object: str,
+        position: Sequence[float] | None = None,
+        tolerance: float = 0.02,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ):
+        super().__init__(name, namespace=namespace, remap=remap)
+        self.object, self.tolerance = object, tolerance
+        self.position = None if position is None else np.asarray(position, dtype=float)
+        if self.position is None:
+            self.use("target", Access.READ)
+
+    def update(self) -> Status:
+        target = self.position if self.position is not None else np.asarray(self.read("target"), dtype=float)
+        where = self.executor.world.object_pose(self.object).position[: len(target)]
+        distance = float(np.linalg.norm(where - target))
+        self.feedback_message = (
+            f"{self.object} is {distance * 100:.1f} cm from {np.round(target, 3).tolist()}"
+        )
+        return Status.SUCCESS if distance <= self.tolerance else Status.FAILURE
+
+
+class AtPose(SimulationBehaviour):
+    """Are the executor's joints within ``tolerance`` (rad or m) of ``configuration`` (or its role)?"""
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        configuration: Sequence[float] | None = None,
+        tolerance: float = 0.01,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ):
+        super().__init__(name, namespace=namespace, remap=remap)
+        self.tolerance = tolerance
+        self.configuration = None if configuration is None else np.asarray(configuration, dtype=float)
+        if self.configuration is None:
+            self.use("configuration", Access.READ)
+
+    def update(self) -> Status:
+        goal = (
+            self.configuration if self.configuration is not None else np.asarray(self.read("configuration"))
+        )
+        if goal.shape != (self.executor.dofs,):
+            self.feedback_message = f"configuration needs {self.executor.dofs} values, got {goal.shape}"
+            return Status.FAILURE
+        error = np.abs(self.executor.measured_position() - goal)
+        joint = self.executor.joints[int(error.argmax())]
+        self.feedback_message = f"largest joint error {error.max():.3g} ({joint})"
+        return Status.SUCCESS if error.max() <= self.tolerance else Status.FAILURE

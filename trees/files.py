@@ -1,0 +1,485 @@
+"""Tree files: behaviour trees written in YAML, validated before anything runs.
+
+py_trees has no file format of its own. A besman tree file is::
+
+    besman_tree: 1                 # the format's version
+    root:                          # one node
+      Sequence:                    # a node is a mapping with one key, its type ...
+        name: tidy up              # ... whose value holds its parameters
+        memory: true
+        children:
+          - Wait: {name: settle, duration: 0.5}
+          - include: grasp.yaml    # a subtree from another file (relative to this one)
+            remap: {/grasp/object_position: /perception/box}   # blackboard keys, renamed inside it
+          - GraspThenPlace: {name: move the box, object: box, target: /task/place}
+
+Node types (:data:`NODE_TYPES`): the py_trees composites (``Sequence``, ``Selector``, ``Parallel``) and
+decorators (``Retry``, ``Repeat``, ``Inverter``, ``SuccessIsFailure``, ``FailureIsSuccess``,
+``SuccessIsRunning``, ``Timeout`` in simulated time), besman's leaves (``ExecutePrimitive``,
+``InstantiateSkillTemplate``, ``Gripper``, ``ObjectGrasped``, ``ObjectAt``, ``AtPose``, ``Wait``,
+``PerceiveObject``, ``PlanGrasp``, ``PlanPlace``) and subtrees (``Grasp``, ``Place``, ``GraspThenPlace``).
+Primitives are referenced by the path of their JSON file; templates by ``module:attribute`` (an object
+with ``instantiate(tau)``). Every leaf takes ``namespace`` and ``remap`` (role -> key) for the blackboard.
+
+:func:`load_tree` checks the whole file first - unknown node types, missing or mistyped parameters, missing
+files, cycles of includes - and reports the file, line and path of the first problem (:class:`TreeFileError`).
+:func:`describe` and :func:`dump_tree` turn a tree back into the same format, so a file round-trips.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import py_trees
+import yaml
+
+from besman.skills import MovementPrimitive
+from besman.trees.base import SimulationBehaviour
+from besman.trees.conditions import AtPose, ObjectAt, ObjectGrasped
+from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
+from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanPlace, grasp, grasp_then_place, place
+from besman.trees.timing import SimTimeout, Wait
+
+FORMAT_VERSION = 1
+
+
+class TreeFileError(ValueError):
+    """A tree file is invalid; the message starts with ``file:line: path:``."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """A node parameter: its kinds (``str``, ``float``, ``int``, ``bool``, ``floats``, ``keys``,
+    ``primitive``, ``template``), whether it is required, and its default."""
+
+    kind: str
+    required: bool = False
+    default: Any = None
+
+
+@dataclass(frozen=True)
+class NodeType:
+    """How to build one node type from its parameters."""
+
+    build: Callable[..., py_trees.behaviour.Behaviour]
+    params: dict[str, Param] = field(default_factory=dict)
+    children: str = "none"  # "none", "one" (decorators: child) or "many" (composites: children)
+
+
+_WIRING = {"namespace": Param("str", default=""), "remap": Param("keys", default={})}
+_POLICIES = {
+    "all": py_trees.common.ParallelPolicy.SuccessOnAll,
+    "one": py_trees.common.ParallelPolicy.SuccessOnOne,
+}
+
+NODE_TYPES: dict[str, NodeType] = {
+    "Sequence": NodeType(
+        lambda name, memory, children: py_trees.composites.Sequence(name, memory, children),
+        {"memory": Param("bool", default=True)},
+        "many",
+    ),
+    "Selector": NodeType(
+        lambda name, memory, children: py_trees.composites.Selector(name, memory, children),
+        {"memory": Param("bool", default=True)},
+        "many",
+    ),
+    "Parallel": NodeType(
+        lambda name, policy, children: py_trees.composites.Parallel(name, _POLICIES[policy](), children),
+        {"policy": Param("str", default="all")},
+        "many",
+    ),
+    "Retry": NodeType(
+        lambda name, attempts, child: py_trees.decorators.Retry(name, child, attempts),
+        {"attempts": Param("int", required=True)},
+        "one",
+    ),
+    "Repeat": NodeType(
+        lambda name, times, child: py_trees.decorators.Repeat(name, child, times),
+        {"times": Param("int", required=True)},
+        "one",
+    ),
+    "Inverter": NodeType(lambda name, child: py_trees.decorators.Inverter(name, child), {}, "one"),
+    "SuccessIsFailure": NodeType(
+        lambda name, child: py_trees.decorators.SuccessIsFailure(name, child), {}, "one"
+    ),
+    "FailureIsSuccess": NodeType(
+        lambda name, child: py_trees.decorators.FailureIsSuccess(name, child), {}, "one"
+    ),
+    "SuccessIsRunning": NodeType(
+        lambda name, child: py_trees.decorators.SuccessIsRunning(name, child), {}, "one"
+    ),
+    "Timeout": NodeType(
+        lambda name, duration, child: SimTimeout(name, child, duration=duration),
+        {"duration": Param("float", required=True)},
+        "one",
+    ),
+    "ExecutePrimitive": NodeType(
+        ExecutePrimitive, {"primitive": Param("primitive"), "timeout": Param("float"), **_WIRING}
+    ),
+    "InstantiateSkillTemplate": NodeType(
+        InstantiateSkillTemplate, {"template": Param("template", required=True), **_WIRING}
+    ),
+    "Gripper": NodeType(
+        Gripper,
+        {
+            "action": Param("str", required=True),
+            "opening": Param("float"),
+            "expect_grasp": Param("bool", default=False),
+            "object": Param("str"),
+            "timeout": Param("float", default=5.0),
+            **_WIRING,
+        },
+    ),
+    "ObjectGrasped": NodeType(ObjectGrasped, {"object": Param("str", required=True), **_WIRING}),
+    "ObjectAt": NodeType(
+        ObjectAt,
+        {
+            "object": Param("str", required=True),
+            "position": Param("floats"),
+            "tolerance": Param("float", default=0.02),
+            **_WIRING,
+        },
+    ),
+    "AtPose": NodeType(
+        AtPose, {"configuration": Param("floats"), "tolerance": Param("float", default=0.01), **_WIRING}
+    ),
+    "Wait": NodeType(Wait, {"duration": Param("float", required=True)}),
+    "PerceiveObject": NodeType(PerceiveObject, {"object": Param("str", required=True), **_WIRING}),
+    "PlanGrasp": NodeType(PlanGrasp, {"object": Param("str", required=True), **_WIRING}),
+    "PlanPlace": NodeType(PlanPlace, {"object": Param("str", required=True), **_WIRING}),
+    "Grasp": NodeType(
+        grasp,
+        {
+            "object": Param("str", default="box"),
+            "namespace": Param("str", default="grasp"),
+            "attempts": Param("int", default=2),
+            "remap": Param("keys", default={}),
+        },
+    ),
+    "Place": NodeType(
+        place,
+        {
+            "object": Param("str", default="box"),
+            "namespace": Param("str", default="place"),
+            "target": Param("str"),
+            "remap": Param("keys", default={}),
+        },
+    ),
+    "GraspThenPlace": NodeType(
+        grasp_then_place,
+        {
+            "object": Param("str", default="box"),
+            "target": Param("str", default="/task/place"),
+            "attempts": Param("int", default=3),
+        },
+    ),
+}
+
+
+def load_tree(path: str | Path) -> py_trees.behaviour.Behaviour:
+    """Builds the tree of a file; a :class:`TreeFileError` names the file, line and path of any problem."""
+    return _Builder().file(Path(path), remap={}, stack=())
+
+
+def loads_tree(text: str, *, base: str | Path = ".", source: str = "<text>") -> py_trees.behaviour.Behaviour:
+    """Builds a tree from YAML text (includes are relative to ``base``)."""
+    return _Builder().document(text, Path(base) / source, remap={}, stack=())
+
+
+class _Builder:
+    def file(self, path: Path, remap: Mapping[str, str], stack: tuple[Path, ...]):
+        resolved = path.resolve()
+        if resolved in stack:
+            chain = " -> ".join(str(p) for p in (*stack, resolved))
+            raise TreeFileError(f"{path}: includes form a cycle: {chain}")
+        try:
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            where = f"{stack[-1]}: " if stack else ""
+            raise TreeFileError(f"{where}{path}: no such file") from None
+        return self.document(text, path, remap, (*stack, resolved))
+
+    def document(self, text: str, path: Path, remap: Mapping[str, str], stack: tuple[Path, ...]):
+        try:
+            node = yaml.compose(text, Loader=yaml.SafeLoader)
+        except yaml.YAMLError as error:
+            mark = getattr(error, "problem_mark", None)
+            line = f":{mark.line + 1}" if mark else ""
+            raise TreeFileError(
+                f"{path}{line}: not valid YAML ({getattr(error, 'problem', error)})"
+            ) from None
+        if not isinstance(node, yaml.MappingNode):
+            raise TreeFileError(f"{path}:1: a tree file is a mapping with 'besman_tree' and 'root'")
+        top = self._mapping(node, path, "")
+        version = top.get("besman_tree")
+        if version is None or self._scalar(version, path, "besman_tree") != str(FORMAT_VERSION):
+            raise TreeFileError(
+                f"{path}:{self._line(version or node)}: besman_tree: expected {FORMAT_VERSION}"
+            )
+        unknown = set(top) - {"besman_tree", "root"}
+        if unknown:
+            key = sorted(unknown)[0]
+            raise TreeFileError(f"{path}:{self._line(top[key])}: unknown top-level field {key!r}")
+        if "root" not in top:
+            raise TreeFileError(f"{path}:{self._line(node)}: missing 'root'")
+        return self.node(top["root"], path, "root", remap, stack)
+
+    # -- YAML helpers --------------------------------------------------------------------------------------
+
+    @staticmethod
+    def _line(node) -> int:
+        return node.start_mark.line + 1
+
+    def _error(self, node, path: Path, where: str, message: str) -> TreeFileError:
+        return TreeFileError(f"{path}:{self._line(node)}: {where}: {message}")
+
+    def _mapping(self, node, path: Path, where: str) -> dict[str, Any]:
+        if not isinstance(node, yaml.MappingNode):
+            raise self._error(node, path, where or "document", "expected a mapping")
+        result = {}
+        for key, value in node.value:
+            name = self._scalar(key, path, where)
+            if name in result:
+                raise self._error(key, path, where, f"{name!r} appears twice")
+            result[name] = value
+        return result
+
+    def _scalar(self, node, path: Path, where: str) -> str:
+        if not isinstance(node, yaml.ScalarNode):
+            raise self._error(node, path, where, "expected a single value")
+        return node.value
+
+    # -- nodes ---------------------------------------------------------------------------------------------
+
+    def node(self, node, path: Path, where: str, remap: Mapping[str, str], stack: tuple[Path, ...]):
+        entries = self._mapping(node, path, where)
+        if "include" in entries:
+            return self.include(entries, node, path, where, remap, stack)
+        if len(entries) != 1:
+            raise self._error(node, path, where, f"a node has exactly one type, got {sorted(entries)}")
+        ((type_name, body),) = entries.items()
+        here = f"{where}.{type_name}"
+        if type_name not in NODE_TYPES:
+            raise self._error(
+                node, path, where, f"unknown node type {type_name!r}; known: {', '.join(NODE_TYPES)}"
+            )
+        spec = NODE_TYPES[type_name]
+        fields = (
+            self._mapping(body, path, here)
+            if not (isinstance(body, yaml.ScalarNode) and body.value == "")
+            else {}
+        )
+        if "name" not in fields:
+            raise self._error(body, path, here, "missing parameter 'name'")
+        arguments = {"name": self._scalar(fields.pop("name"), path, f"{here}.name")}
+        if spec.children == "many":
+            children = fields.pop("children", None)
+            if not isinstance(children, yaml.SequenceNode) or not children.value:
+                raise self._error(body, path, here, "'children' must be a non-empty list of nodes")
+            arguments["children"] = [
+                self.node(child, path, f"{here}.children[{i}]", remap, stack)
+                for i, child in enumerate(children.value)
+            ]
+        elif spec.children == "one":
+            child = fields.pop("child", None)
+            if child is None:
+                raise self._error(body, path, here, "missing 'child'")
+            arguments["child"] = self.node(child, path, f"{here}.child", remap, stack)
+        for param_name, param in spec.params.items():
+            if param_name in fields:
+                arguments[param_name] = self.value(
+                    fields.pop(param_name), param, path, f"{here}.{param_name}"
+                )
+            elif param.required:
+                raise self._error(body, path, here, f"missing parameter {param_name!r}")
+            elif param.default is not None:
+                arguments[param_name] = param.default
+        if fields:
+            extra = sorted(fields)[0]
+            known = ", ".join(["name", *spec.params]) or "name"
+            raise self._error(
+                fields[extra], path, f"{here}.{extra}", f"unknown parameter; {type_name} takes {known}"
+            )
+        if remap and "remap" in spec.params:
+            arguments["remap"] = self._apply_remap(type_name, arguments, remap)
+        if remap and isinstance(arguments.get("target"), str):
+            arguments["target"] = remap.get(arguments["target"], arguments["target"])
+        try:
+            behaviour = spec.build(**arguments)
+        except (ValueError, KeyError) as error:
+            raise self._error(body, path, here, str(error)) from None
+        behaviour.besman_spec = {
+            "type": type_name,
+            **{k: v for k, v in arguments.items() if k not in ("children", "child")},
+        }
+        return behaviour
+
+    @staticmethod
+    def _apply_remap(type_name: str, arguments: dict, remap: Mapping[str, str]) -> dict[str, str]:
+        """Include remappings rename keys; a leaf's own remap applies first."""
+        own = dict(arguments.get("remap") or {})
+        namespace = str(arguments.get("namespace", "")).strip("/")
+        roles = _ROLES.get(type_name, ())
+        for role in roles:
+            key = own.get(role, f"/{namespace}/{role}" if namespace else f"/{role}")
+            if key in remap:
+                own[role] = remap[key]
+        for role, key in list(own.items()):
+            own[role] = remap.get(key, key)
+        return own
+
+    def include(self, entries, node, path: Path, where: str, remap: Mapping[str, str], stack):
+        extra = set(entries) - {"include", "remap"}
+        if extra:
+            key = sorted(extra)[0]
+            raise self._error(
+                entries[key], path, f"{where}.{key}", "an include takes only 'include' and 'remap'"
+            )
+        target = path.parent / self._scalar(entries["include"], path, f"{where}.include")
+        inner = dict(remap)
+        if "remap" in entries:
+            own = self.value(entries["remap"], Param("keys"), path, f"{where}.remap")
+            inner = {key: remap.get(value, value) for key, value in own.items()} | {
+                key: value for key, value in remap.items() if key not in own
+            }
+        if not target.exists():
+            raise self._error(entries["include"], path, f"{where}.include", f"no such file {target}")
+        behaviour = self.file(target, inner, stack)
+        behaviour.besman_include = {"include": str(target), "remap": inner}
+        return behaviour
+
+    def value(self, node, param: Param, path: Path, where: str):
+        kind = param.kind
+        if kind == "keys":
+            mapping = self._mapping(node, path, where)
+            return {key: self._scalar(value, path, f"{where}.{key}") for key, value in mapping.items()}
+        if kind == "floats":
+            if not isinstance(node, yaml.SequenceNode):
+                raise self._error(node, path, where, "expected a list of numbers")
+            return [self._number(item, path, f"{where}[{i}]", float) for i, item in enumerate(node.value)]
+        text = self._scalar(node, path, where)
+        if kind == "str":
+            return text
+        if kind == "float":
+            return self._number(node, path, where, float)
+        if kind == "int":
+            return self._number(node, path, where, int)
+        if kind == "bool":
+            if text.lower() not in ("true", "false"):
+                raise self._error(node, path, where, f"expected true or false, got {text!r}")
+            return text.lower() == "true"
+        if kind == "primitive":
+            file = path.parent / text
+            try:
+                primitive = MovementPrimitive.load(file)
+            except ValueError as error:
+                raise self._error(node, path, where, str(error)) from None
+            primitive.source = str(file)
+            return primitive
+        if kind == "template":
+            module, _, attribute = text.partition(":")
+            try:
+                template = getattr(importlib.import_module(module), attribute)
+            except (ImportError, AttributeError, ValueError):
+                raise self._error(
+                    node, path, where, f"cannot import the template {text!r} (module:attribute)"
+                ) from None
+            if not callable(getattr(template, "instantiate", None)):
+                raise self._error(node, path, where, f"{text!r} has no instantiate(tau)")
+            return template
+        raise AssertionError(kind)
+
+    def _number(self, node, path: Path, where: str, kind: type):
+        text = self._scalar(node, path, where)
+        try:
+            return kind(text) if kind is int else float(text)
+        except ValueError:
+            raise self._error(
+                node, path, where, f"expected {'an integer' if kind is int else 'a number'}, got {text!r}"
+            ) from None
+
+
+_ROLES = {
+    "ExecutePrimitive": ("primitive",),
+    "InstantiateSkillTemplate": ("tau", "primitive"),
+    "ObjectAt": ("target",),
+    "AtPose": ("configuration",),
+    "PerceiveObject": ("object_position",),
+    "PlanGrasp": ("object_position", "approach", "descend", "lift"),
+    "PlanPlace": ("target", "transport", "place", "retreat"),
+    "Grasp": ("object_position", "approach", "descend", "lift"),
+    "Place": ("target", "transport", "place", "retreat"),
+}
+
+
+def describe(node: py_trees.behaviour.Behaviour) -> dict:
+    """A tree as plain data in the file format (node types with their parameters, nested)."""
+    spec = dict(getattr(node, "besman_spec", None) or _spec_of(node))
+    type_name = spec.pop("type")
+    body: dict[str, Any] = {}
+    for key, value in spec.items():
+        if isinstance(value, MovementPrimitive):
+            value = getattr(value, "source", value.name)
+        elif type_name == "InstantiateSkillTemplate" and key == "template":
+            value = f"{type(value).__module__}:{getattr(value, '__name__', type(value).__name__)}"
+        if value not in ({}, None):
+            body[key] = value
+    kind = NODE_TYPES[type_name].children
+    if kind == "many":
+        body["children"] = [describe(child) for child in node.children]
+    elif kind == "one":
+        body["child"] = describe(node.decorated)
+    return {type_name: body}
+
+
+def _spec_of(node: py_trees.behaviour.Behaviour) -> dict:
+    """The file spec of a behaviour built in code rather than from a file."""
+    name = node.name
+    if isinstance(node, py_trees.composites.Sequence):
+        return {"type": "Sequence", "name": name, "memory": node.memory}
+    if isinstance(node, py_trees.composites.Selector):
+        return {"type": "Selector", "name": name, "memory": node.memory}
+    if isinstance(node, py_trees.composites.Parallel):
+        policy = "all" if isinstance(node.policy, py_trees.common.ParallelPolicy.SuccessOnAll) else "one"
+        if isinstance(node.policy, py_trees.common.ParallelPolicy.SuccessOnSelected):
+            raise TreeFileError(
+                f"{name}: a Parallel with a SuccessOnSelected policy has no file form; "
+                "use the subtree node that made it"
+            )
+        return {"type": "Parallel", "name": name, "policy": policy}
+    simple = {
+        py_trees.decorators.Inverter: "Inverter",
+        py_trees.decorators.SuccessIsFailure: "SuccessIsFailure",
+        py_trees.decorators.FailureIsSuccess: "FailureIsSuccess",
+        py_trees.decorators.SuccessIsRunning: "SuccessIsRunning",
+    }
+    for cls, type_name in simple.items():
+        if type(node) is cls:
+            return {"type": type_name, "name": name}
+    if isinstance(node, py_trees.decorators.Retry):
+        return {"type": "Retry", "name": name, "attempts": node.num_failures}
+    if isinstance(node, py_trees.decorators.Repeat):
+        return {"type": "Repeat", "name": name, "times": node.num_success}
+    if isinstance(node, SimTimeout):
+        return {"type": "Timeout", "name": name, "duration": node.duration}
+    raise TreeFileError(f"{name}: {type(node).__name__} has no file form")
+
+
+def dump_tree(root: py_trees.behaviour.Behaviour) -> str:
+    """The tree file text of a tree (subtrees made by file nodes are written as those nodes)."""
+    return yaml.safe_dump({"besman_tree": FORMAT_VERSION, "root": describe(root)}, sort_keys=False)
+
+
+__all__ = [
+    "NODE_TYPES",
+    "SimulationBehaviour",
+    "TreeFileError",
+    "describe",
+    "dump_tree",
+    "load_tree",
+    "loads_tree",
+]

@@ -1,0 +1,199 @@
+"""besman's behaviour-tree leaves: execute primitives, instantiate skill templates, drive the gripper.
+
+- :class:`ExecutePrimitive` executes a :class:`~besman.skills.MovementPrimitive` (given, or read from the
+  blackboard) through the Ruckig executor: RUNNING while it moves, SUCCESS when the end state is reached,
+  FAILURE with a feedback message on an unreachable pose, a tracking error, a simulation fault or a
+  sim-time timeout. Pre-empted (terminated with INVALID), it brakes the robot to rest within the limits.
+- :class:`InstantiateSkillTemplate` reads tau from the blackboard, asks a skill template (any object with
+  ``instantiate(tau) -> MovementPrimitive``, given directly or by name from a pool, i.e. any mapping of
+  names to templates) for a primitive and writes it to the blackboard.
+- :class:`Gripper` opens or closes the hand; closing with ``expect_grasp`` fails if nothing is held.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Protocol
+
+import numpy as np
+import py_trees
+from py_trees.common import Access, Status
+
+from besman.sim.executor import FollowReference, GripperMotion, Motion, MotionStatus
+from besman.sim.manipulation import OPEN
+from besman.skills import MovementPrimitive
+from besman.trees.base import SimulationBehaviour
+
+_STATUS = {
+    MotionStatus.RUNNING: Status.RUNNING,
+    MotionStatus.SUCCEEDED: Status.SUCCESS,
+    MotionStatus.FAILED: Status.FAILURE,
+}
+
+
+class MotionLeaf(SimulationBehaviour):
+    """A leaf that runs one executor motion: starts it in ``initialise``, mirrors its status in ``update``
+    and brakes the robot if it is pre-empted."""
+
+    def __init__(self, name: str, *, timeout: float | None = None, **kwargs) -> None:
+        super().__init__(name, **kwargs)
+        self.timeout = timeout
+        self.motion: Motion | None = None
+        self.problem = ""
+        self.deadline = float("inf")
+
+    def make_motion(self) -> Motion:
+        raise NotImplementedError
+
+    def initialise(self) -> None:
+        self.problem, self.motion = "", None
+        try:
+            self.motion = self.executor.start(self.make_motion())
+        except (ValueError, KeyError) as error:
+            self.problem = str(error)
+        self.deadline = self.time + self.timeout if self.timeout is not None else float("inf")
+
+    def update(self) -> Status:
+        if self.problem:
+            self.feedback_message = self.problem
+            return Status.FAILURE
+        if self.time > self.deadline and self.motion.status is MotionStatus.RUNNING:
+            self.feedback_message = f"timed out after {self.timeout:g} s of simulated time"
+            return Status.FAILURE
+        status = _STATUS[self.motion.status]
+        self.feedback_message = self.motion.message or self.motion.status.value
+        return status
+
+    def terminate(self, new_status: Status) -> None:
+        running = self.motion is not None and self.motion.status is MotionStatus.RUNNING
+        if running and self.executor.motion is self.motion:
+            self.executor.stop()  # pre-empted or timed out: brake within the limits
+
+
+class ExecutePrimitive(MotionLeaf):
+    """Executes a movement primitive, started in the robot's current commanded state.
+
+    Args:
+        name: the leaf's name.
+        primitive: the primitive; if None it is read from the blackboard role ``primitive``.
+        timeout: simulated seconds after which a still-running motion fails (default: none).
+        namespace, remap: blackboard wiring (see :mod:`besman.trees.base`).
+    """
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        primitive: MovementPrimitive | None = None,
+        timeout: float | None = None,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ) -> None:
+        super().__init__(name, timeout=timeout, namespace=namespace, remap=remap)
+        self.primitive = primitive
+        if primitive is None:
+            self.use("primitive", Access.READ)
+
+    def make_motion(self) -> Motion:
+        primitive = self.primitive if self.primitive is not None else self.read("primitive")
+        if not isinstance(primitive, MovementPrimitive):
+            raise ValueError(
+                f"{self.key('primitive')} holds {type(primitive).__name__}, not a MovementPrimitive"
+            )
+        return FollowReference(primitive.name, reference=self.executor.primitive_reference(primitive))
+
+
+class Gripper(MotionLeaf):
+    """Opens (``action="open"``) or closes (``"close"``) the gripper; SUCCESS when the fingers settle.
+
+    With ``expect_grasp`` (closing only) it fails unless both fingers touch ``object`` and it moves with the
+    hand.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        action: str = "close",
+        opening: float | None = None,
+        expect_grasp: bool = False,
+        object: str | None = None,
+        timeout: float | None = 5.0,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ) -> None:
+        if action not in ("open", "close"):
+            raise ValueError(f"{name}: action must be 'open' or 'close', got {action!r}")
+        if expect_grasp and (action != "close" or object is None):
+            raise ValueError(f"{name}: expect_grasp needs action='close' and an object")
+        super().__init__(name, timeout=timeout, namespace=namespace, remap=remap)
+        self.action, self.expect_grasp, self.object = action, expect_grasp, object
+        self.opening = (OPEN if action == "open" else 0.0) if opening is None else float(opening)
+
+    def make_motion(self) -> Motion:
+        return GripperMotion(
+            self.name, opening=self.opening, expect_grasp=self.expect_grasp, grasp_object=self.object
+        )
+
+
+class SkillTemplate(Protocol):
+    """Anything that turns task parameters into a movement primitive."""
+
+    def instantiate(self, tau: np.ndarray) -> MovementPrimitive: ...
+
+
+class InstantiateSkillTemplate(py_trees.behaviour.Behaviour):
+    """Reads tau (role ``tau``), instantiates a skill template and writes the primitive (role ``primitive``).
+
+    Args:
+        name: the leaf's name.
+        template: the template object, or
+        pool, template_name: a mapping of names to templates and the name to take.
+        namespace, remap: blackboard wiring; by default it reads ``/<namespace>/tau`` and writes
+            ``/<namespace>/primitive``.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        template: SkillTemplate | None = None,
+        pool: Mapping[str, Any] | None = None,
+        template_name: str | None = None,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ) -> None:
+        super().__init__(name=name)
+        if (template is None) == (pool is None):
+            raise ValueError(f"{name}: give either a template or a pool and a template_name")
+        if pool is not None and template_name is None:
+            raise ValueError(f"{name}: a pool needs a template_name")
+        self.template, self.pool, self.template_name = template, pool, template_name
+        self.namespace, self.remap = namespace.strip("/"), dict(remap or {})
+        self.blackboard = self.attach_blackboard_client(name=name)
+        self.blackboard.register_key(key=self.key("tau"), access=Access.READ)
+        self.blackboard.register_key(key=self.key("primitive"), access=Access.WRITE)
+
+    def key(self, role: str) -> str:
+        return SimulationBehaviour.key(self, role)  # the same role -> key rule as the simulation leaves
+
+    def update(self) -> Status:
+        if self.pool is not None:
+            if self.template_name not in self.pool:
+                self.feedback_message = f"the pool has no template {self.template_name!r}"
+                return Status.FAILURE
+            template = self.pool[self.template_name]
+        else:
+            template = self.template
+        if not self.blackboard.exists(self.key("tau")):
+            self.feedback_message = f"no tau at {self.key('tau')}"
+            return Status.FAILURE
+        tau = np.asarray(self.blackboard.get(self.key("tau")), dtype=float)
+        try:
+            primitive = template.instantiate(tau)
+        except ValueError as error:
+            self.feedback_message = f"the template rejected tau {tau.tolist()}: {error}"
+            return Status.FAILURE
+        self.blackboard.set(self.key("primitive"), primitive, overwrite=True)
+        self.feedback_message = f"instantiated {getattr(primitive, 'name', 'a primitive')}"
+        return Status.SUCCESS
