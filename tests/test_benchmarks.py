@@ -45,8 +45,12 @@ def test_rollouts_benchmark_reports_ratios_as_json():
 
 @pytest.mark.slow
 def test_trees_benchmark_reports_overhead_and_real_time_factor():
-    result = subprocess.run([sys.executable, str(BENCHMARKS / "trees.py"), "--json", "--runs", "1"],
-                            capture_output=True, text=True, check=True)
+    result = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "trees.py"), "--json", "--runs", "1"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     report = json.loads(result.stdout)
     assert report["overhead_per_tick_us"] == pytest.approx(report["tick_us"] + report["record_us"])
     assert report["real_time_factor"] > 0

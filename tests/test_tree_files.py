@@ -193,3 +193,46 @@ def test_a_cycle_of_includes_is_reported(tmp_path):
 def test_a_missing_tree_file():
     with pytest.raises(TreeFileError, match=r"nothing\.yaml: no such file"):
         load_tree("nothing.yaml")
+
+
+def test_templates_and_pools_are_referenced_by_module_attribute(tmp_path, monkeypatch):
+    (tmp_path / "my_skills.py").write_text(
+        textwrap.dedent("""
+        from besman.skills import DMP, MovementPrimitive
+
+        class Reach:
+            def instantiate(self, tau):
+                return MovementPrimitive(DMP(8, goal=0.1 * float(tau[0])), "reach")
+
+        REACH = Reach()
+        POOL = {"reach": REACH}
+    """)
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    path = write(
+        tmp_path,
+        "skills.yaml",
+        """
+        besman_tree: 1
+        root:
+          Sequence:
+            name: both
+            children:
+              - InstantiateSkillTemplate: {name: from pool, pool: "my_skills:POOL", template_name: reach}
+              - InstantiateSkillTemplate: {name: direct, template: "my_skills:REACH", namespace: direct}
+    """,
+    )
+    root = load_tree(path)
+    assert root.children[0].pool["reach"] is root.children[1].template
+    assert describe(loads_tree(dump_tree(root), base=tmp_path)) == describe(root)
+    bad = write(
+        tmp_path,
+        "bad.yaml",
+        """
+        besman_tree: 1
+        root:
+          InstantiateSkillTemplate: {name: t, pool: "my_skills:REACH", template_name: reach}
+    """,
+    )
+    with pytest.raises(TreeFileError, match="is not a pool"):
+        load_tree(bad)

@@ -19,7 +19,8 @@ decorators (``Retry``, ``Repeat``, ``Inverter``, ``SuccessIsFailure``, ``Failure
 ``InstantiateSkillTemplate``, ``Gripper``, ``ObjectGrasped``, ``ObjectAt``, ``AtPose``, ``Wait``,
 ``PerceiveObject``, ``PlanGrasp``, ``PlanPlace``) and subtrees (``Grasp``, ``Place``, ``GraspThenPlace``).
 Primitives are referenced by the path of their JSON file; templates by ``module:attribute`` (an object
-with ``instantiate(tau)``). Every leaf takes ``namespace`` and ``remap`` (role -> key) for the blackboard.
+with ``instantiate(tau)``), or a pool (``pool: module:attribute``, a mapping of names to templates) and a
+``template_name``. Every leaf takes ``namespace`` and ``remap`` (role -> key) for the blackboard.
 
 :func:`load_tree` checks the whole file first - unknown node types, missing or mistyped parameters, missing
 files, cycles of includes - and reports the file, line and path of the first problem (:class:`TreeFileError`).
@@ -121,7 +122,8 @@ NODE_TYPES: dict[str, NodeType] = {
         ExecutePrimitive, {"primitive": Param("primitive"), "timeout": Param("float"), **_WIRING}
     ),
     "InstantiateSkillTemplate": NodeType(
-        InstantiateSkillTemplate, {"template": Param("template", required=True), **_WIRING}
+        InstantiateSkillTemplate,
+        {"template": Param("template"), "pool": Param("pool"), "template_name": Param("str"), **_WIRING},
     ),
     "Gripper": NodeType(
         Gripper,
@@ -289,11 +291,15 @@ class _Builder:
             if child is None:
                 raise self._error(body, path, here, "missing 'child'")
             arguments["child"] = self.node(child, path, f"{here}.child", remap, stack)
+        references = {}  # how the file named primitives and templates, for describe()
         for param_name, param in spec.params.items():
             if param_name in fields:
-                arguments[param_name] = self.value(
-                    fields.pop(param_name), param, path, f"{here}.{param_name}"
-                )
+                value_node = fields.pop(param_name)
+                arguments[param_name] = self.value(value_node, param, path, f"{here}.{param_name}")
+                if param.kind == "primitive":
+                    references[param_name] = str((path.parent / value_node.value).resolve())
+                elif param.kind in ("template", "pool"):
+                    references[param_name] = value_node.value
             elif param.required:
                 raise self._error(body, path, here, f"missing parameter {param_name!r}")
             elif param.default is not None:
@@ -315,6 +321,7 @@ class _Builder:
         behaviour.besman_spec = {
             "type": type_name,
             **{k: v for k, v in arguments.items() if k not in ("children", "child")},
+            **references,
         }
         return behaviour
 
@@ -378,9 +385,8 @@ class _Builder:
                 primitive = MovementPrimitive.load(file)
             except ValueError as error:
                 raise self._error(node, path, where, str(error)) from None
-            primitive.source = str(file)
             return primitive
-        if kind == "template":
+        if kind in ("template", "pool"):
             module, _, attribute = text.partition(":")
             try:
                 template = getattr(importlib.import_module(module), attribute)
@@ -388,7 +394,11 @@ class _Builder:
                 raise self._error(
                     node, path, where, f"cannot import the template {text!r} (module:attribute)"
                 ) from None
-            if not callable(getattr(template, "instantiate", None)):
+            if kind == "pool" and not isinstance(template, Mapping):
+                raise self._error(
+                    node, path, where, f"{text!r} is not a pool (a mapping of names to templates)"
+                )
+            if kind == "template" and not callable(getattr(template, "instantiate", None)):
                 raise self._error(node, path, where, f"{text!r} has no instantiate(tau)")
             return template
         raise AssertionError(kind)
@@ -422,10 +432,10 @@ def describe(node: py_trees.behaviour.Behaviour) -> dict:
     type_name = spec.pop("type")
     body: dict[str, Any] = {}
     for key, value in spec.items():
-        if isinstance(value, MovementPrimitive):
-            value = getattr(value, "source", value.name)
-        elif type_name == "InstantiateSkillTemplate" and key == "template":
-            value = f"{type(value).__module__}:{getattr(value, '__name__', type(value).__name__)}"
+        if not isinstance(value, str) and key in ("primitive", "template", "pool"):
+            raise TreeFileError(
+                f"{spec.get('name')}: a {key} given as an object has no file form; name it in a file"
+            )
         if value not in ({}, None):
             body[key] = value
     kind = NODE_TYPES[type_name].children
