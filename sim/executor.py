@@ -26,7 +26,7 @@ Every cycle is logged (time, commanded joint states) so that limits can be check
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -254,8 +254,9 @@ class Executor:
         """Pre-empts the current motion with a smooth stop."""
         return self.start(Stop("stop"))
 
-    def run(self, motion: Motion, timeout: float = 30.0) -> Motion:
-        """Runs ``motion`` to its end (or ``timeout`` seconds of simulated time) and returns it."""
+    def run(self, motion: Motion, timeout: float = 30.0, observe: Callable[[], None] | None = None) -> Motion:
+        """Runs ``motion`` to its end (or ``timeout`` seconds of simulated time) and returns it; ``observe``
+        is called after every control cycle."""
         self.start(motion)
         deadline = self.time + timeout
         while motion.status is MotionStatus.RUNNING:
@@ -263,7 +264,34 @@ class Executor:
                 motion.finish(MotionStatus.FAILED, f"timed out after {timeout:g} s")
                 break
             self.tick()
+            if observe is not None:
+                observe()
         return motion
+
+    def solve_ik(
+        self,
+        position,
+        orientation,
+        *,
+        initial: np.ndarray | None = None,
+        restarts: int = 0,
+        tolerances: tuple[float, float] = (1e-4, 1e-3),
+    ) -> robots.IKResult:
+        """Inverse kinematics of the executor's site over its joints, started from ``initial`` (default: the
+        commanded position), the heavy slow joints taking a small share (weights = acceleration limits)."""
+        start = self.position if initial is None else initial
+        return robots.solve_ik(
+            self.world.robot,
+            self.groups,
+            position,
+            orientation,
+            site=self.site,
+            initial_qpos=self.full_qpos(start),
+            restarts=restarts,
+            position_tolerance=tolerances[0],
+            orientation_tolerance=tolerances[1],
+            joint_weights=self.max_acceleration,
+        )
 
     def tick(self) -> MotionStatus:
         """One control cycle: command, simulate, check; returns the current motion's status."""
@@ -585,8 +613,7 @@ class Executor:
         whose derivatives are the reference's velocities and accelerations, free of the noise that
         differencing IK solutions would amplify."""
         period = self.config.control_period
-        qpos = self.full_qpos(start)
-        pose = robots.forward_kinematics(self.world.robot, qpos, self.site)
+        pose = robots.forward_kinematics(self.world.robot, self.full_qpos(start), self.site)
         dmp.position.configure(start=pose.position, start_velocity=0.0, start_acceleration=0.0, dt=period)
         dmp.start_orientation = pose.quaternion
         dmp.start_angular_velocity = np.zeros(3)
@@ -595,25 +622,17 @@ class Executor:
         knots = np.unique(np.r_[np.arange(0, len(cartesian.times), stride), len(cartesian.times) - 1])
         joints = np.empty((len(knots), self.dofs))
         accepted_position, accepted_orientation = self.config.ik_acceptance
+        tolerances = (self.config.ik_position_tolerance, self.config.ik_orientation_tolerance)
         for row, k in enumerate(knots):
-            result = robots.solve_ik(
-                self.world.robot,
-                self.groups,
-                cartesian.positions[k],
-                cartesian.orientations[k],
-                site=self.site,
-                initial_qpos=qpos,
-                position_tolerance=self.config.ik_position_tolerance,
-                orientation_tolerance=self.config.ik_orientation_tolerance,
-                restarts=0,
-                joint_weights=self.max_acceleration,
+            previous = joints[row - 1] if row else start
+            result = self.solve_ik(
+                cartesian.positions[k], cartesian.orientations[k], initial=previous, tolerances=tolerances
             )
             if result.position_error > accepted_position or result.orientation_error > accepted_orientation:
                 raise ValueError(
                     f"unreachable pose at t={cartesian.times[k]:.3f} s of the primitive: {result.message}"
                 )
             joints[row] = result.qpos
-            qpos[self.qpos_indices] = result.qpos
         spline = CubicSpline(cartesian.times[knots], joints, axis=0, bc_type="clamped")
         positions = np.clip(spline(cartesian.times), self.lower, self.upper)
         return Trajectory(cartesian.times, positions, spline(cartesian.times, 1), spline(cartesian.times, 2))

@@ -100,22 +100,15 @@ def plan_leg(
     best: _Leg | None = None
     span = executor.upper - executor.lower
     for yaw in GRASP_YAWS:
-        orientation, configurations, qpos = top_down(yaw), [], executor.full_qpos(start)
+        orientation, configurations, previous = top_down(yaw), [], start
         for index, position in enumerate(positions):
-            result = robots.solve_ik(
-                executor.world.robot,
-                executor.groups,
-                position,
-                orientation,
-                site=executor.site,
-                initial_qpos=qpos,
-                restarts=4 if index == 0 else 0,
-                joint_weights=executor.max_acceleration,
+            result = executor.solve_ik(
+                position, orientation, initial=previous, restarts=4 if index == 0 else 0
             )
             if not result.success or executor.collisions(result.qpos, allowed):
                 break
             configurations.append(result.qpos)
-            qpos[executor.qpos_indices] = result.qpos
+            previous = result.qpos
         else:
             primitives = [
                 straight_line(name, a, b, orientation, executor, duration)

@@ -153,7 +153,7 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
             if isinstance(step, Motion)
             else FollowReference(step.name, executor.primitive_reference(step))
         )
-        _run(executor, motion, monitor)
+        executor.run(motion, timeout=15.0, observe=monitor.update)
         if motion.status is not MotionStatus.SUCCEEDED:
             return _failure(world, motion.name, motion.message, monitor)
         if motion.name in ("lift", "transport", "place") and not executor.holds(item.name):
@@ -190,18 +190,6 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
         message,
         violations,
     )
-
-
-def _run(executor: Executor, motion: Motion, monitor: _BoxMonitor, timeout: float = 15.0) -> Motion:
-    executor.start(motion)
-    deadline = executor.time + timeout
-    while motion.status is MotionStatus.RUNNING:
-        if executor.time >= deadline:
-            motion.finish(MotionStatus.FAILED, f"timed out after {timeout:g} s")
-            break
-        executor.tick()
-        monitor.update()
-    return motion
 
 
 class _BoxMonitor:

@@ -66,22 +66,14 @@ def straight_line(
     times = np.linspace(0.0, duration, knots)
     s = times / duration
     profile = 10 * s**3 - 15 * s**4 + 6 * s**5
-    qpos, path = executor.full_qpos(start), [start]
+    path = [start]
     for fraction in profile[1:]:
-        result = robots.solve_ik(
-            executor.world.robot,
-            executor.groups,
-            origin + fraction * (goal_position - origin),
-            orientation,
-            site=executor.site,
-            initial_qpos=qpos,
-            restarts=0,
-            joint_weights=executor.max_acceleration,
+        result = executor.solve_ik(
+            origin + fraction * (goal_position - origin), orientation, initial=path[-1]
         )
         if not result.success:
             return None
         path.append(result.qpos)
-        qpos[executor.qpos_indices] = result.qpos
     path = np.array(path)
     dense = np.linspace(0.0, duration, 10 * knots)
     positions = CubicSpline(times, path, axis=0, bc_type="clamped")(dense)

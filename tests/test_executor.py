@@ -128,16 +128,6 @@ def test_a_blocked_arm_is_reported(executor):
 
 
 def _ik(executor, position, orientation, tolerance_ok=False):
-    import besman.robots as robots
-
-    result = robots.solve_ik(
-        executor.world.robot,
-        executor.groups,
-        position,
-        orientation,
-        site=executor.site,
-        initial_qpos=executor.full_qpos(executor.position),
-        joint_weights=executor.max_acceleration,
-    )
+    result = executor.solve_ik(position, orientation, restarts=10)
     assert result.success or tolerance_ok, result.message
     return result.qpos
