@@ -298,7 +298,7 @@ class ThrowingTask:
         run = [i for i, failure in enumerate(failures) if failure is None]
         landings = np.zeros((len(thetas), 2))
         if run:
-            states, ball = self._rollout(controls[run])
+            states, ball = self._rollout(controls if len(run) == len(controls) else controls[run])
             for row, (failure, landing) in enumerate(self._landings(states, ball, release_step[run])):
                 failures[run[row]] = failure
                 if landing is not None:
