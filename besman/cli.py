@@ -1,4 +1,4 @@
-"""The ``besman`` command line: ``besman --help`` lists the commands."""
+"""besman: robots learn reusable manipulation skills and run them as behaviour trees (the command line)."""
 
 from __future__ import annotations
 
