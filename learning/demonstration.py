@@ -1,0 +1,265 @@
+"""Demonstrations: recorded human motion as named 3-D channels over time, and the loaders that read them.
+
+A :class:`Demonstration` holds sample times (s), the recording's own frame numbers, named channels of 3-D
+positions in metres (missing samples are NaN until preprocessing bridges them), the source file and,
+when known, ground-truth segments (start and end frame, label).
+
+Loaders, chosen by :func:`load` from the file's suffix:
+
+- Qualisys Track Manager TSV exports (``.tsv``): a header block of ``KEY<TAB>values`` lines, a column line
+  ``Frame  Time  <marker> X  <marker> Y  <marker> Z ...`` (any marker order), one row per frame, ``null``
+  for missing values, millimetres; frames and times are the file's own (cropped recordings start anywhere).
+  A ``<stem>_manually_segmented.json`` beside the file (a list of ``{"start index", "end index", "label"}``
+  with frame numbers) becomes the ground truth.
+- CSV (``.csv``): a header with a time column and columns ``<channel>_x``, ``<channel>_y``, ``<channel>_z``
+  (metres unless ``units="mm"``).
+- NPZ (``.npz``): ``times`` and one (T, 3) array per channel, with ``schema_version`` 1 (no pickles).
+
+Every problem - a truncated file, no ``Frame``/``Time`` columns, a non-numeric cell, an unknown or all-missing
+marker - raises :class:`DemonstrationError` naming the file, line or marker.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from besman.skills.storage import npz_bytes, read_npz, write_atomically
+
+SCHEMA_VERSION = 1
+AXES = ("X", "Y", "Z")
+
+
+class DemonstrationError(ValueError):
+    """A demonstration file cannot be used; the message names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A ground-truth segment: frames ``start_frame`` to ``end_frame`` (the file's numbering) and a label."""
+
+    start_frame: int
+    end_frame: int
+    label: str
+
+
+@dataclass(frozen=True, eq=False)
+class Demonstration:
+    """A recording: ``times`` (T,) in s, ``frames`` (T,), ``channels`` name -> (T, 3) positions in m."""
+
+    times: np.ndarray
+    frames: np.ndarray
+    channels: dict[str, np.ndarray]
+    source: str | None = None
+    units: str = "m"
+    segments: tuple[Segment, ...] = field(default=())
+
+    @property
+    def rate(self) -> float:
+        """Samples per second (from the median time step)."""
+        return float(1.0 / np.median(np.diff(self.times)))
+
+    @property
+    def duration(self) -> float:
+        return float(self.times[-1] - self.times[0])
+
+    def channel(self, name: str) -> np.ndarray:
+        """The (T, 3) positions of a channel; a ``DemonstrationError`` lists the channels if it is unknown."""
+        if name not in self.channels:
+            raise DemonstrationError(
+                f"{self.source or 'demonstration'}: no marker {name!r}; markers: {', '.join(self.channels)}"
+            )
+        return self.channels[name]
+
+    def gaps(self, name: str) -> list[tuple[int, int]]:
+        """Runs of missing samples of a channel as (first frame, last frame)."""
+        missing = np.isnan(self.channel(name)).any(axis=1)
+        edges = np.flatnonzero(np.diff(np.r_[0, missing.astype(int), 0]))
+        return [
+            (int(self.frames[a]), int(self.frames[b - 1]))
+            for a, b in zip(edges[::2], edges[1::2], strict=True)
+        ]
+
+    def frame_index(self, frame: int) -> int:
+        """The sample index of a frame number."""
+        index = int(np.searchsorted(self.frames, frame))
+        if index >= len(self.frames) or self.frames[index] != frame:
+            raise DemonstrationError(
+                f"{self.source}: frame {frame} is not in the recording ({self.frames[0]}..{self.frames[-1]})"
+            )
+        return index
+
+    def save(self, path: str | Path) -> Path:
+        """Writes the demonstration as NPZ (atomically)."""
+        arrays = {"schema_version": np.array(SCHEMA_VERSION), "times": self.times, "frames": self.frames}
+        arrays |= {f"channel/{name}": values for name, values in self.channels.items()}
+        return write_atomically(path, npz_bytes(arrays))
+
+
+def load(path: str | Path, **options) -> Demonstration:
+    """Loads a demonstration, choosing the reader by suffix (``.tsv``, ``.csv``, ``.npz``)."""
+    path = Path(path)
+    readers = {".tsv": load_qualisys_tsv, ".csv": load_csv, ".npz": load_npz}
+    if path.suffix.lower() not in readers:
+        raise DemonstrationError(f"{path}: unknown format {path.suffix!r}; known: {', '.join(readers)}")
+    return readers[path.suffix.lower()](path, **options)
+
+
+def _read_text(path: Path) -> list[str]:
+    try:
+        return path.read_text(encoding="utf-8", errors="replace").splitlines()
+    except FileNotFoundError:
+        raise DemonstrationError(f"{path}: no such file") from None
+
+
+def _numbers(cells: list[str], path: Path, line: int, names: list[str]) -> np.ndarray:
+    values = np.empty(len(cells))
+    for i, cell in enumerate(cells):
+        text = cell.strip()
+        if text in ("null", "", "NaN", "nan"):
+            values[i] = np.nan
+            continue
+        try:
+            values[i] = float(text)
+        except ValueError:
+            raise DemonstrationError(
+                f"{path}:{line}: column {names[i]!r} holds {text!r}, not a number"
+            ) from None
+    return values
+
+
+def load_qualisys_tsv(path: str | Path) -> Demonstration:
+    """Reads a Qualisys TSV export (see the module documentation)."""
+    path = Path(path)
+    lines = _read_text(path)
+    header_line = next((i for i, line in enumerate(lines) if line.split("\t")[:1] == ["Frame"]), None)
+    if header_line is None:
+        raise DemonstrationError(f"{path}: no column header line starting with 'Frame' and 'Time'")
+    names = [name for name in lines[header_line].rstrip("\n").split("\t")]
+    while names and not names[-1].strip():
+        names.pop()  # exports end the header line with a tab
+    if names[:2] != ["Frame", "Time"]:
+        raise DemonstrationError(
+            f"{path}:{header_line + 1}: the columns must start with Frame and Time, got {names[:2]}"
+        )
+    rows = []
+    for number, line in enumerate(lines[header_line + 1 :], header_line + 2):
+        if not line.strip():
+            continue
+        cells = line.split("\t")
+        while len(cells) > len(names) and not cells[-1].strip():
+            cells.pop()
+        if len(cells) != len(names):
+            raise DemonstrationError(
+                f"{path}:{number}: {len(cells)} values for {len(names)} columns (truncated or damaged file)"
+            )
+        rows.append(_numbers(cells, path, number, names))
+    if len(rows) < 2:
+        raise DemonstrationError(f"{path}: fewer than 2 rows of data")
+    data = np.array(rows)
+    if np.isnan(data[:, :2]).any():
+        row = int(np.argwhere(np.isnan(data[:, :2]))[0, 0])
+        raise DemonstrationError(f"{path}:{header_line + 2 + row}: Frame and Time must be numbers")
+    channels: dict[str, np.ndarray] = {}
+    for column, name in enumerate(names[2:], 2):
+        marker, _, axis = name.rpartition(" ")
+        if axis not in AXES or not marker:
+            raise DemonstrationError(f"{path}:{header_line + 1}: column {name!r} is not '<marker> X|Y|Z'")
+        channels.setdefault(marker, np.full((len(data), 3), np.nan))[:, AXES.index(axis)] = (
+            data[:, column] / 1000.0
+        )
+    for marker, values in channels.items():
+        if np.isnan(values).all():
+            raise DemonstrationError(f"{path}: marker {marker!r} has no valid sample (all null)")
+    times, frames = data[:, 1], data[:, 0].astype(int)
+    if np.any(np.diff(times) <= 0):
+        raise DemonstrationError(f"{path}: the Time column must increase")
+    return Demonstration(times, frames, channels, str(path), "m", _ground_truth(path, frames))
+
+
+def _ground_truth(path: Path, frames: np.ndarray) -> tuple[Segment, ...]:
+    sidecar = path.with_name(f"{path.stem}_manually_segmented.json")
+    if not sidecar.exists():
+        return ()
+    try:
+        entries = json.loads(sidecar.read_text(encoding="utf-8"))
+        segments = tuple(
+            Segment(int(e["start index"]), int(e["end index"]), str(e["label"])) for e in entries
+        )
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
+        raise DemonstrationError(
+            f"{sidecar}: not a list of segments with 'start index', 'end index', 'label' ({error})"
+        ) from None
+    for segment in segments:
+        if not frames[0] <= segment.start_frame <= segment.end_frame <= frames[-1]:
+            raise DemonstrationError(
+                f"{sidecar}: segment {segment} lies outside the recording's frames {frames[0]}..{frames[-1]}"
+            )
+    return segments
+
+
+def load_csv(path: str | Path, *, time_column: str = "time", units: str = "m") -> Demonstration:
+    """Reads a CSV with a time column and ``<channel>_x/_y/_z`` columns (``units`` "m" or "mm")."""
+    path = Path(path)
+    if units not in ("m", "mm"):
+        raise DemonstrationError(f"{path}: units must be 'm' or 'mm', got {units!r}")
+    lines = _read_text(path)
+    if not lines:
+        raise DemonstrationError(f"{path}: empty file")
+    names = [name.strip() for name in lines[0].split(",")]
+    if time_column not in names:
+        raise DemonstrationError(f"{path}:1: no time column {time_column!r}; columns: {', '.join(names)}")
+    rows = []
+    for number, line in enumerate(lines[1:], 2):
+        if not line.strip():
+            continue
+        cells = line.split(",")
+        if len(cells) != len(names):
+            raise DemonstrationError(f"{path}:{number}: {len(cells)} values for {len(names)} columns")
+        rows.append(_numbers(cells, path, number, names))
+    if len(rows) < 2:
+        raise DemonstrationError(f"{path}: fewer than 2 rows of data")
+    data = np.array(rows)
+    times = data[:, names.index(time_column)]
+    if np.isnan(times).any() or np.any(np.diff(times) <= 0):
+        raise DemonstrationError(f"{path}: the {time_column!r} column must hold increasing numbers")
+    channels: dict[str, np.ndarray] = {}
+    scale = 0.001 if units == "mm" else 1.0
+    for column, name in enumerate(names):
+        channel, _, axis = name.rpartition("_")
+        if name == time_column:
+            continue
+        if axis.upper() not in AXES or not channel:
+            raise DemonstrationError(f"{path}:1: column {name!r} is not '<channel>_x|y|z'")
+        channels.setdefault(channel, np.full((len(data), 3), np.nan))[:, AXES.index(axis.upper())] = (
+            data[:, column] * scale
+        )
+    return Demonstration(times, np.arange(len(times)), channels, str(path), "m")
+
+
+def load_npz(path: str | Path) -> Demonstration:
+    """Reads a demonstration saved with :meth:`Demonstration.save`."""
+    path = Path(path)
+    arrays = read_npz(path)
+    if "schema_version" not in arrays or int(arrays["schema_version"]) != SCHEMA_VERSION:
+        raise DemonstrationError(f"{path}: not a besman demonstration (schema_version {SCHEMA_VERSION})")
+    for key in ("times", "frames"):
+        if key not in arrays:
+            raise DemonstrationError(f"{path}: missing array {key!r}")
+    times, frames = arrays["times"].astype(float), arrays["frames"].astype(int)
+    channels = {
+        key.removeprefix("channel/"): arrays[key].astype(float)
+        for key in arrays
+        if key.startswith("channel/")
+    }
+    for name, values in channels.items():
+        if values.shape != (len(times), 3):
+            raise DemonstrationError(
+                f"{path}: channel {name!r} has shape {values.shape}, expected ({len(times)}, 3)"
+            )
+    if len(times) < 2 or np.any(np.diff(times) <= 0) or not np.isfinite(times).all():
+        raise DemonstrationError(f"{path}: times must be at least 2 increasing numbers")
+    return Demonstration(times, frames, channels, str(path), "m")
