@@ -189,6 +189,71 @@ def _tasks_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _segment(args: argparse.Namespace) -> int:
+    from besman.learning import load
+    from besman.learning.segmentation import segment
+
+    demo = load(args.file)
+    segmentation = segment(demo, marker=args.marker)
+    frames = [int(frame) for frame in segmentation.frames]
+    times = [float(time) for time in segmentation.times]
+    result = {
+        "segments": [
+            {
+                "start_frame": frames[k],
+                "end_frame": frames[k + 1],
+                "start_time": times[k],
+                "end_time": times[k + 1],
+                "label": None,
+            }
+            for k in range(len(segmentation))
+        ],
+        "boundaries_frame": frames,
+    }
+    if args.plot:
+        from besman.learning.segmentation_plot import plot_segmentation
+
+        plot_segmentation(demo, segmentation, args.plot)
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        for k, entry in enumerate(result["segments"]):
+            print(
+                f"{k:2d}  frames {entry['start_frame']}-{entry['end_frame']}  "
+                f"{entry['start_time']:.2f}-{entry['end_time']:.2f} s  {segmentation.models[k]}"
+            )
+    return 0
+
+
+def _demos_show(args: argparse.Namespace) -> int:
+    from besman.learning import load
+
+    demo = load(args.file)
+    summary = {
+        "file": str(args.file),
+        "duration_s": demo.duration,
+        "rate_hz": demo.rate,
+        "samples": len(demo.times),
+        "frames": [int(demo.frames[0]), int(demo.frames[-1])],
+        "units": demo.units,
+        "markers": {name: {"gaps": demo.gaps(name)} for name in demo.channels},
+        "ground_truth_segments": len(demo.segments),
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    print(
+        f"{summary['file']}: {demo.duration:.2f} s at {demo.rate:.1f} Hz, {len(demo.times)} samples "
+        f"(frames {demo.frames[0]}-{demo.frames[-1]}), {len(demo.segments)} ground-truth segments"
+    )
+    for name in demo.channels:
+        gaps = demo.gaps(name)
+        missing = sum(last - first + 1 for first, last in gaps)
+        detail = ", ".join(f"{first}-{last}" for first, last in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
+        print(f"  {name}: {len(gaps)} gaps, {missing} frames missing" + (f" ({detail})" if gaps else ""))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="besman", description=__doc__)
     parser.add_argument("--version", action="version", version=f"besman {__version__}")
@@ -244,6 +309,20 @@ def build_parser() -> argparse.ArgumentParser:
     task_show.add_argument("name")
     task_show.add_argument("--json", action="store_true")
     task_show.set_defaults(handler=_tasks_show)
+
+    segment = commands.add_parser("segment", help="cut a recording into segments (hand speed, Bayesian)")
+    segment.add_argument("file", help="a recording (.tsv Qualisys export, .csv, .npz)")
+    segment.add_argument("--marker", default="Hand top", help="the marker to segment (default: Hand top)")
+    segment.add_argument("--json", action="store_true", help="print the segments as JSON")
+    segment.add_argument("--plot", metavar="PNG", help="write the speed with the boundaries to this file")
+    segment.set_defaults(handler=_segment)
+
+    demos = commands.add_parser("demos", help="inspect recordings")
+    demo_commands = demos.add_subparsers(dest="demos_command", metavar="ACTION", required=True)
+    demos_show = demo_commands.add_parser("show", help="duration, rate, markers and gaps of a recording")
+    demos_show.add_argument("file")
+    demos_show.add_argument("--json", action="store_true")
+    demos_show.set_defaults(handler=_demos_show)
     return parser
 
 

@@ -1,0 +1,47 @@
+"""A picture of a segmentation: the hand speed over time with the found boundaries (and the ground truth).
+
+People judge a segmentation at a glance from the speed profile: every reaching movement is a bump, holds
+are flat, and a boundary belongs in the valleys between bumps.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only, no display
+import matplotlib.pyplot as plt
+
+from besman.learning.demonstration import Demonstration
+from besman.learning.segmentation import Segmentation
+from besman.skills.storage import write_atomically
+
+
+def plot_segmentation(demo: Demonstration, segmentation: Segmentation, path: str | Path) -> Path:
+    """Writes a PNG of the segmented speed with the boundaries (solid) and any ground-truth boundaries of
+    the demonstration (dashed)."""
+    figure, axes = plt.subplots(figsize=(12, 3.5), layout="constrained")
+    axes.plot(
+        segmentation.signal_times, segmentation.signal, color="black", linewidth=1.0, label="hand speed"
+    )
+    for k, time in enumerate(segmentation.times):
+        axes.axvline(time, color="tab:blue", linewidth=1.5, label="boundaries" if k == 0 else None)
+    truth = sorted(
+        {demo.times[demo.frame_index(f)] for s in demo.segments for f in (s.start_frame, s.end_frame)}
+    )
+    for k, time in enumerate(truth):
+        axes.axvline(
+            time, color="tab:orange", linestyle="--", linewidth=1.2, label="ground truth" if k == 0 else None
+        )
+    axes.set_xlabel("time (s)")
+    axes.set_ylabel("speed (m/s)")
+    axes.set_title(
+        f"{Path(demo.source).name if demo.source else 'demonstration'}: {len(segmentation)} segments"
+    )
+    axes.legend(loc="upper right")
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=100)
+    plt.close(figure)
+    return write_atomically(path, buffer.getvalue())

@@ -1,0 +1,69 @@
+"""The command line for recordings: `besman demos show` and `besman segment`."""
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from besman.cli import main
+
+
+def recording(tmp_path, seed=0, rate=60.0, gap=None):
+    """A Qualisys-style TSV of one hand marker: hold, minimum-jerk reach, hold; frames start at 500."""
+    rng = np.random.default_rng(seed)
+    s = np.arange(60) / 60
+    path = np.r_[np.zeros(60), 10 * s**3 - 15 * s**4 + 6 * s**5, np.ones(60)]
+    positions = 1000 * (np.outer(path, [0.3, -0.2, 0.1]) + rng.normal(0, 0.001, (len(path), 3)))
+    header = [
+        "NO_OF_FRAMES\t180",
+        f"FREQUENCY\t{rate:g}",
+        "MARKER_NAMES\tHand top\t",
+        "Frame\tTime\tHand top X\tHand top Y\tHand top Z\t",
+    ]
+    rows = []
+    for i, row in enumerate(positions):
+        cells = ["null"] * 3 if gap and gap[0] <= i < gap[1] else [f"{v:.3f}" for v in row]
+        rows.append("\t".join([str(500 + i), f"{(500 + i) / rate:.5f}", *cells]) + "\t")
+    file = tmp_path / "reach.tsv"
+    file.write_text("\n".join(header + rows) + "\n")
+    return file
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_demos_show_summarises_a_recording(capsys, tmp_path):
+    file = recording(tmp_path, gap=(70, 75))
+    code, out, _ = run(capsys, "demos", "show", str(file), "--json")
+    summary = json.loads(out)
+    assert code == 0 and summary["samples"] == 180 and summary["rate_hz"] == pytest.approx(60.0, rel=1e-3)
+    assert summary["frames"] == [500, 679] and summary["markers"]["Hand top"]["gaps"] == [[570, 574]]
+    code, out, _ = run(capsys, "demos", "show", str(file))
+    assert code == 0 and "Hand top: 1 gaps, 5 frames missing (570-574)" in out
+
+
+def test_segment_prints_json_in_the_files_frames_and_writes_a_plot(capsys, tmp_path):
+    file = recording(tmp_path)
+    code, out, _ = run(capsys, "segment", str(file), "--json", "--plot", str(tmp_path / "seg.png"))
+    result = json.loads(out)
+    assert code == 0
+    assert result["boundaries_frame"][0] == 500 and result["boundaries_frame"][-1] == 679
+    np.testing.assert_allclose(result["boundaries_frame"], [500, 560, 620, 679], atol=4)
+    first, last = result["segments"][0], result["segments"][-1]
+    assert first["start_time"] == 8.33333 and first["label"] is None and last["end_frame"] == 679
+    assert [s["end_frame"] for s in result["segments"][:-1]] == [
+        s["start_frame"] for s in result["segments"][1:]
+    ]
+    assert Image.open(tmp_path / "seg.png").size[0] > 500
+
+
+def test_segment_errors_name_the_file_and_the_problem(capsys, tmp_path):
+    file = recording(tmp_path)
+    code, _, err = run(capsys, "segment", str(file), "--marker", "Wrist")
+    assert code == 2 and str(file) in err and "no marker 'Wrist'" in err
+    code, _, err = run(capsys, "segment", str(tmp_path / "missing.tsv"))
+    assert code == 2 and "missing.tsv" in err
