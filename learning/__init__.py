@@ -3,24 +3,42 @@
 So far: :mod:`besman.learning.demonstration` (recordings and their loaders),
 :mod:`besman.learning.preprocessing` (Kalman/RTS smoothing, gaps, resampling, hand poses) and
 :mod:`besman.learning.segmentation` (exact Bayesian change-point inference: evidences, MAP, change-point
-probabilities, posterior samples; ``segment(demo)``) and :mod:`besman.learning.segmentation_plot`.
+probabilities, posterior samples; ``segment(demo)``), :mod:`besman.learning.segmentation_plot`,
+:mod:`besman.learning.labelling` (building blocks: clustering, few-shot 1-NN) and
+:mod:`besman.learning.imitation` (a Cartesian-DMP primitive per building block).
 """
 
 from besman.learning.demonstration import Demonstration, DemonstrationError, Segment, load
+from besman.learning.imitation import imitate
+from besman.learning.labelling import (
+    DemonstrationSegment,
+    cluster,
+    ground_truth_segments,
+    grouping_accuracy,
+    label_few_shot,
+    segments_of,
+)
 from besman.learning.preprocessing import SmoothingConfig, hand_pose, resample, smooth
 from besman.learning.segmentation import Segmentation, SegmentationPrior, SegmentModel, segment
 
 __all__ = [
     "Demonstration",
     "DemonstrationError",
+    "DemonstrationSegment",
     "Segment",
     "SegmentModel",
     "Segmentation",
     "SegmentationPrior",
     "SmoothingConfig",
+    "cluster",
+    "ground_truth_segments",
+    "grouping_accuracy",
     "hand_pose",
+    "imitate",
+    "label_few_shot",
     "load",
     "resample",
     "segment",
+    "segments_of",
     "smooth",
 ]
