@@ -54,3 +54,30 @@ def test_trees_benchmark_reports_overhead_and_real_time_factor():
     report = json.loads(result.stdout)
     assert report["overhead_per_tick_us"] == pytest.approx(report["tick_us"] + report["record_us"])
     assert report["real_time_factor"] > 0
+
+
+SHARED_RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not SHARED_RECORDINGS.exists(), reason="the shared recordings sit beside the repository")
+def test_segmentation_benchmark_compares_every_method_as_json():
+    result = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "segmentation.py"), "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    report = json.loads(result.stdout)
+    assert report["recordings"] == 15
+    assert set(report["methods"]) == {
+        "ours",
+        "speed minima",
+        "ruptures Pelt (linear)",
+        "ruptures Dynp (linear)",
+    }
+    best_other = max(s["f1_0.2"] for name, s in report["methods"].items() if name != "ours")
+    assert report["ours_vs_best_other_f1_0.2"] == pytest.approx(
+        report["methods"]["ours"]["f1_0.2"] / best_other
+    )
+    assert report["ours_best_f1"] and report["methods"]["ours"]["seconds"] < 1.0

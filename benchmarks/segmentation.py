@@ -1,0 +1,175 @@
+"""Segmentation of the shared human recordings, side by side: ours, ruptures and speed minima, in one run.
+
+    python benchmarks/segmentation.py [--json] [--data DIR] [--cost linear|ar]
+
+Every method segments the same signal: the Kalman/RTS-smoothed speed of "Hand top", resampled at 20 Hz.
+- ours: ``besman.learning.segment`` with its default hyperparameters (no tuning per file);
+- ruptures Pelt and Dynp with a ``linear`` cost (speed regressed on 1, t) or an ``ar`` (order 2) cost,
+  ``jump=1``; Pelt's penalty and Dynp's number of change points are chosen for each file by leave-one-out
+  (best mean F1 at +-0.2 s on the other files);
+- speed minima: local minima of the speed (scipy ``find_peaks`` on -speed, prominence 0.05 m/s, 0.3 s
+  apart) plus the recording's first and last sample.
+The truth is the start and end frames of the six main segments of each run. Scores: mean boundary F1 at
++-0.1 and +-0.2 s (one-to-one matching), mean Hausdorff distance (s), seconds per recording.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import ruptures
+from rich.console import Console
+from rich.progress import track
+from rich.table import Table
+from scipy.signal import find_peaks
+
+from besman.learning import load, resample, segment, smooth
+from besman.learning.segmentation import boundary_f1
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
+MAIN_SEGMENTS = {
+    "approach_forward",
+    "move_obj_table",
+    "move_to_rest_right",
+    "approach_right",
+    "move_obj_shelf",
+    "move_to_rest_down",
+}
+RATE = 20.0
+PENALTIES = np.logspace(-3, 0, 13)
+CHANGE_POINT_COUNTS = range(6, 17)
+
+
+def hausdorff(truth: np.ndarray, predicted: np.ndarray) -> float:
+    distances = np.abs(truth[:, None] - predicted[None, :])
+    return float(max(distances.min(axis=1).max(), distances.min(axis=0).max()))
+
+
+def scores(truth: np.ndarray, predicted: np.ndarray) -> dict[str, float]:
+    return {
+        "f1_0.1": boundary_f1(truth, predicted, 0.1),
+        "f1_0.2": boundary_f1(truth, predicted, 0.2),
+        "hausdorff_s": hausdorff(truth, predicted),
+    }
+
+
+def ruptures_signal(speed: np.ndarray, cost: str) -> np.ndarray:
+    if cost == "linear":
+        return np.column_stack([speed, np.ones_like(speed), np.arange(len(speed)) / RATE])
+    return speed[:, None]
+
+
+def ruptures_algorithm(kind: str, cost: str, signal: np.ndarray):
+    params = {"order": 2} if cost == "ar" else None
+    algorithm = ruptures.Pelt if kind == "pelt" else ruptures.Dynp
+    return algorithm(model=cost, jump=1, min_size=3, params=params).fit(signal)
+
+
+def predict(algorithm, kind: str, setting) -> list[int]:
+    if kind == "pelt":
+        return algorithm.predict(pen=float(setting))
+    return algorithm.predict(n_bkps=int(setting))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    parser.add_argument("--data", type=Path, default=DATA, help="folder of the shared recordings")
+    parser.add_argument("--cost", choices=("linear", "ar"), default="linear", help="ruptures' cost")
+    args = parser.parse_args()
+    files = sorted(args.data.glob("*.tsv"))
+    if len(files) < 2:
+        raise SystemExit(f"{args.data}: need at least two recordings (*.tsv) for leave-one-out")
+
+    results: dict[str, list[dict[str, float]]] = {"ours": [], "speed minima": []}
+    # Scores of every ruptures setting on every file, for the leave-one-out choice.
+    candidates: dict[str, list[list[dict[str, float]]]] = {"pelt": [], "dynp": []}
+    signals = []
+    for file in track(files, description="segmenting", disable=args.json, console=Console(stderr=True)):
+        demo = load(file)
+        truth = np.array(
+            sorted(
+                {
+                    demo.times[demo.frame_index(frame)]
+                    for s in demo.segments
+                    if s.label in MAIN_SEGMENTS
+                    for frame in (s.start_frame, s.end_frame)
+                }
+            )
+        )
+        start = time.perf_counter()
+        ours = segment(demo)
+        results["ours"].append(scores(truth, ours.times) | {"seconds": time.perf_counter() - start})
+
+        start = time.perf_counter()
+        times, speed = resample(demo.times, smooth(demo, "Hand top").speed, RATE)
+        minima, _ = find_peaks(-speed, prominence=0.05, distance=round(0.3 * RATE))
+        predicted = times[np.r_[0, minima, len(times) - 1]]
+        results["speed minima"].append(scores(truth, predicted) | {"seconds": time.perf_counter() - start})
+
+        signal = ruptures_signal(speed, args.cost)
+        edges = np.r_[times, times[-1]]
+        signals.append(signal)
+        for kind, settings in (("pelt", PENALTIES), ("dynp", CHANGE_POINT_COUNTS)):
+            algorithm = ruptures_algorithm(kind, args.cost, signal)
+            candidates[kind].append(
+                [scores(truth, edges[np.r_[0, predict(algorithm, kind, setting)]]) for setting in settings]
+            )
+
+    choices = {}
+    for kind, per_file in candidates.items():
+        name = f"ruptures {kind.capitalize()} ({args.cost})"
+        results[name], choices[name] = [], []
+        for k in range(len(per_file)):
+            others = [per_file[j] for j in range(len(per_file)) if j != k]
+            mean_f1 = [np.mean([o[i]["f1_0.2"] for o in others]) for i in range(len(others[0]))]
+            best = int(np.argmax(mean_f1))
+            setting = (PENALTIES if kind == "pelt" else CHANGE_POINT_COUNTS)[best]
+            choices[name].append(float(setting))
+            start = time.perf_counter()  # timed afresh: fit and predict with the chosen setting only
+            predict(ruptures_algorithm(kind, args.cost, signals[k]), kind, setting)
+            results[name].append(per_file[k][best] | {"seconds": time.perf_counter() - start})
+
+    summary = {
+        name: {key: float(np.mean([r[key] for r in rows])) for key in rows[0]}
+        for name, rows in results.items()
+    }
+    report = {
+        "recordings": len(files),
+        "rate_hz": RATE,
+        "methods": summary,
+        "leave_one_out_settings": choices,
+        "ours_best_f1": all(
+            summary["ours"][key] >= max(s[key] for s in summary.values()) for key in ("f1_0.1", "f1_0.2")
+        ),
+        "ours_vs_best_other_f1_0.2": summary["ours"]["f1_0.2"]
+        / max(s["f1_0.2"] for name, s in summary.items() if name != "ours"),
+    }
+    if args.json:
+        print(json.dumps(report, indent=2))
+        return
+    table = Table(title=f"Segmentation of {len(files)} recordings (F1: mean over recordings)")
+    for column in ("method", "F1 +-0.1 s", "F1 +-0.2 s", "Hausdorff (s)", "s / recording"):
+        table.add_column(column, justify="left" if column == "method" else "right")
+    for name, row in summary.items():
+        table.add_row(
+            name,
+            f"{row['f1_0.1']:.3f}",
+            f"{row['f1_0.2']:.3f}",
+            f"{row['hausdorff_s']:.2f}",
+            f"{row['seconds']:.3f}",
+        )
+    console = Console()
+    console.print(table)
+    console.print(
+        f"ours / best other F1 at +-0.2 s: {report['ours_vs_best_other_f1_0.2']:.2f}; "
+        f"ours best at both margins: {report['ours_best_f1']}"
+    )
+
+
+if __name__ == "__main__":
+    main()
