@@ -28,17 +28,10 @@ from rich.table import Table
 from scipy.signal import find_peaks
 
 from besman.learning import load, resample, segment, smooth
+from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
 from besman.learning.segmentation import boundary_f1
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
-MAIN_SEGMENTS = {
-    "approach_forward",
-    "move_obj_table",
-    "move_to_rest_right",
-    "approach_right",
-    "move_obj_shelf",
-    "move_to_rest_down",
-}
 RATE = 20.0
 PENALTIES = np.logspace(-3, 0, 13)
 CHANGE_POINT_COUNTS = range(6, 17)
@@ -91,16 +84,8 @@ def main() -> None:
     signals = []
     for file in track(files, description="segmenting", disable=args.json, console=Console(stderr=True)):
         demo = load(file)
-        truth = np.array(
-            sorted(
-                {
-                    demo.times[demo.frame_index(frame)]
-                    for s in demo.segments
-                    if s.label in MAIN_SEGMENTS
-                    for frame in (s.start_frame, s.end_frame)
-                }
-            )
-        )
+        frames = demo.boundary_frames(PICK_AND_PLACE_MAIN_SEGMENTS)
+        truth = demo.times[[demo.frame_index(frame) for frame in frames]]
         start = time.perf_counter()
         ours = segment(demo)
         results["ours"].append(scores(truth, ours.times) | {"seconds": time.perf_counter() - start})

@@ -22,6 +22,7 @@ marker - raises :class:`DemonstrationError` naming the file, line or marker.
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,6 +32,18 @@ from besman.skills.storage import npz_bytes, read_npz, write_atomically
 
 SCHEMA_VERSION = 1
 AXES = ("X", "Y", "Z")
+
+
+# The six main segments of each run of the DFKI pick-and-place recordings (their ``_part`` sub-segments
+# overlap these); the ground truth of segmentation and labelling on that data.
+PICK_AND_PLACE_MAIN_SEGMENTS = (
+    "approach_forward",
+    "move_obj_table",
+    "move_to_rest_right",
+    "approach_right",
+    "move_obj_shelf",
+    "move_to_rest_down",
+)
 
 
 class DemonstrationError(ValueError):
@@ -82,6 +95,17 @@ class Demonstration:
             (int(self.frames[a]), int(self.frames[b - 1]))
             for a, b in zip(edges[::2], edges[1::2], strict=True)
         ]
+
+    def boundary_frames(self, labels: Sequence[str] | None = None) -> list[int]:
+        """Sorted start and end frames of the annotated segments (only those with one of ``labels``)."""
+        return sorted(
+            {
+                frame
+                for s in self.segments
+                if labels is None or s.label in labels
+                for frame in (s.start_frame, s.end_frame)
+            }
+        )
 
     def frame_index(self, frame: int) -> int:
         """The sample index of a frame number."""

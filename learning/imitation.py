@@ -15,7 +15,7 @@ import numpy as np
 
 from besman.learning.demonstration import Demonstration
 from besman.learning.labelling import DemonstrationSegment
-from besman.learning.preprocessing import SmoothingConfig, hand_pose, smooth
+from besman.learning.preprocessing import hand_pose, smooth
 from besman.skills.cartesian_dmp import CartesianDMP
 from besman.skills.primitive import MovementPrimitive
 
@@ -27,7 +27,7 @@ def _pose(demo: Demonstration, marker: str) -> tuple[np.ndarray, np.ndarray, str
     if all(name in demo.channels for name in HAND_MARKERS):
         positions, orientations = hand_pose(demo, *HAND_MARKERS)
         return positions, orientations, "centroid and orientation of Hand top, Hand left, Hand right"
-    positions = smooth(demo, marker, SmoothingConfig()).positions
+    positions = smooth(demo, marker).positions
     return positions, np.tile(IDENTITY, (len(positions), 1)), f"position of {marker}, fixed orientation"
 
 

@@ -24,7 +24,7 @@ from sklearn.neighbors import KNeighborsClassifier
 from sklearn.preprocessing import StandardScaler
 
 from besman.learning.demonstration import Demonstration, DemonstrationError
-from besman.learning.preprocessing import SmoothingConfig, resample, smooth
+from besman.learning.preprocessing import resample, smooth
 from besman.learning.segmentation import Segmentation
 
 
@@ -79,7 +79,7 @@ def descriptors(
             )
         key = id(segment.demo)
         if key not in smoothed:
-            smoothed[key] = smooth(segment.demo, marker, SmoothingConfig()).positions
+            smoothed[key] = smooth(segment.demo, marker).positions
         path = smoothed[key][segment.start : segment.end + 1]
         times = segment.demo.times[segment.start : segment.end + 1]
         _, shape = resample((times - times[0]) / (times[-1] - times[0]), path, points - 1.0)

@@ -163,16 +163,40 @@ def length_prior(n_samples: int, rate: float, prior: SegmentationPrior) -> tuple
     return log_g, log_survival
 
 
-def _combined(evidences: list[np.ndarray], model_prior: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    stacked = np.stack(evidences) + model_prior[:, None, None]
-    return logsumexp(stacked, axis=0), stacked
+def _stacked(evidences: list[np.ndarray], model_prior: np.ndarray) -> np.ndarray:
+    """log P(y[j:t], model q) (Q, T+1, T+1)."""
+    return np.stack(evidences) + model_prior[:, None, None]
+
+
+def _end_terms(
+    combined: np.ndarray, backward: np.ndarray, log_g: np.ndarray, log_survival: np.ndarray, j: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every end t > j of a segment starting at change point j, and log P(y[j:t] as one segment, then the
+    rest | change point at j)."""
+    n_samples = combined.shape[0] - 1
+    ends = np.arange(j + 1, n_samples + 1)
+    lengths = ends - j
+    terms = combined[j, ends] + np.where(
+        ends == n_samples, log_survival[lengths], log_g[lengths] + backward[ends]
+    )
+    return ends, terms
+
+
+def _backward(combined: np.ndarray, log_g: np.ndarray, log_survival: np.ndarray) -> np.ndarray:
+    """Q[j] = log P(y[j:] | change point at j), from the end backwards."""
+    n_samples = combined.shape[0] - 1
+    backward = np.full(n_samples + 1, -np.inf)
+    backward[n_samples] = 0.0
+    for j in range(n_samples - 1, -1, -1):
+        backward[j] = logsumexp(_end_terms(combined, backward, log_g, log_survival, j)[1])
+    return backward
 
 
 def map_segmentation(
     evidences: list[np.ndarray], log_g: np.ndarray, log_survival: np.ndarray, model_prior: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Viterbi over change points: boundaries and the index of each segment's model."""
-    stacked = np.stack(evidences) + model_prior[:, None, None]
+    stacked = _stacked(evidences, model_prior)
     n_samples = stacked.shape[1] - 1
     best = np.full(n_samples + 1, -np.inf)
     best[0] = 0.0
@@ -197,25 +221,13 @@ def change_probabilities(
 ) -> tuple[np.ndarray, float, np.ndarray]:
     """Posterior probability of a change point at each sample (forward-backward), the log marginal
     likelihood, and the backward messages Q (log P(y[t:] | change point at t))."""
-    combined, _ = _combined(evidences, model_prior)
+    combined = logsumexp(_stacked(evidences, model_prior), axis=0)
     n_samples = combined.shape[0] - 1
-    n = np.arange(n_samples + 1)
-    lengths = n[None, :] - n[:, None]  # t - j
-    valid = lengths > 0
-    prior = np.where(valid, log_g[np.clip(lengths, 0, n_samples)], -np.inf)
-    last = np.where(valid, log_survival[np.clip(lengths, 0, n_samples)], -np.inf)
     forward = np.full(n_samples + 1, -np.inf)
     forward[0] = 0.0
     for t in range(1, n_samples):
-        forward[t] = logsumexp(forward[:t] + combined[:t, t] + prior[:t, t])
-    backward = np.full(n_samples + 1, -np.inf)
-    backward[n_samples] = 0.0
-    for j in range(n_samples - 1, -1, -1):
-        ends = np.arange(j + 1, n_samples + 1)
-        terms = combined[j, ends] + np.where(
-            ends == n_samples, last[j, ends], prior[j, ends] + backward[ends]
-        )
-        backward[j] = logsumexp(terms)
+        forward[t] = logsumexp(forward[:t] + combined[:t, t] + log_g[t - np.arange(t)])
+    backward = _backward(combined, log_g, log_survival)
     marginal = float(backward[0])
     probability = np.exp(forward + backward - marginal)
     probability[0] = probability[n_samples] = 1.0
@@ -231,19 +243,15 @@ def sample_segmentations(
     seed: int,
 ) -> list[np.ndarray]:
     """Exact samples of the change points from the posterior (backward filtering, forward sampling)."""
-    combined, _ = _combined(evidences, model_prior)
+    combined = logsumexp(_stacked(evidences, model_prior), axis=0)
     n_samples = combined.shape[0] - 1
-    _, _, backward = change_probabilities(evidences, log_g, log_survival, model_prior)
+    backward = _backward(combined, log_g, log_survival)
     rng = np.random.default_rng(seed)
     samples = []
     for _ in range(count):
         points, j = [0], 0
         while j < n_samples:
-            ends = np.arange(j + 1, n_samples + 1)
-            lengths = ends - j
-            terms = combined[j, ends] + np.where(
-                ends == n_samples, log_survival[lengths], log_g[lengths] + backward[ends]
-            )
+            ends, terms = _end_terms(combined, backward, log_g, log_survival, j)
             weights = np.exp(terms - logsumexp(terms))
             j = int(rng.choice(ends, p=weights / weights.sum()))
             points.append(j)

@@ -28,9 +28,7 @@ def plot_segmentation(demo: Demonstration, segmentation: Segmentation, path: str
     )
     for k, time in enumerate(segmentation.times):
         axes.axvline(time, color="tab:blue", linewidth=1.5, label="boundaries" if k == 0 else None)
-    truth = sorted(
-        {demo.times[demo.frame_index(f)] for s in demo.segments for f in (s.start_frame, s.end_frame)}
-    )
+    truth = [demo.times[demo.frame_index(frame)] for frame in demo.boundary_frames()]
     for k, time in enumerate(truth):
         axes.axvline(
             time, color="tab:orange", linestyle="--", linewidth=1.2, label="ground truth" if k == 0 else None

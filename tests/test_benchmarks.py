@@ -56,14 +56,10 @@ def test_trees_benchmark_reports_overhead_and_real_time_factor():
     assert report["real_time_factor"] > 0
 
 
-SHARED_RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
-
-
 @pytest.mark.slow
-@pytest.mark.skipif(not SHARED_RECORDINGS.exists(), reason="the shared recordings sit beside the repository")
-def test_segmentation_benchmark_compares_every_method_as_json():
+def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings):
     result = subprocess.run(
-        [sys.executable, str(BENCHMARKS / "segmentation.py"), "--json"],
+        [sys.executable, str(BENCHMARKS / "segmentation.py"), "--json", "--data", str(shared_recordings)],
         capture_output=True,
         text=True,
         check=True,

@@ -1,21 +1,16 @@
 """Demonstrations: loading Qualisys TSV, CSV and NPZ recordings, smoothing and gaps."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from besman.learning.demonstration import Demonstration, DemonstrationError, load
 from besman.learning.preprocessing import SmoothingConfig, hand_pose, resample, smooth
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
-RUN = DATA / "subject1_run1.tsv"
 HEADER = "NO_OF_FRAMES\t4\nFREQUENCY\t60\nMARKER_NAMES\tHand\nFrame\tTime\tHand X\tHand Y\tHand Z\t\n"
 
 
-@pytest.mark.skipif(not RUN.exists(), reason="the shared recordings sit beside the repository")
-def test_a_qualisys_recording_loads_without_a_list_of_columns():
-    demo = load(RUN)
+def test_a_qualisys_recording_loads_without_a_list_of_columns(shared_recordings):
+    demo = load(shared_recordings / "subject1_run1.tsv")
     assert len(demo.channels) == 13 and "Hand top" in demo.channels
     assert demo.frames[0] == 690 and demo.times[0] == pytest.approx(11.48333)
     assert demo.rate == pytest.approx(60.0, rel=1e-3)

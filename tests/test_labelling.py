@@ -1,11 +1,10 @@
 """Labelling segments into building blocks and imitating each block by a Cartesian DMP."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from besman.learning import Demonstration, Segment, load
+from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
 from besman.learning.imitation import imitate
 from besman.learning.labelling import (
     DemonstrationSegment,
@@ -131,23 +130,14 @@ def test_each_building_block_becomes_a_cartesian_primitive_of_its_mean_instance(
         imitate([], name="none")
 
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
-MAIN_SEGMENTS = (
-    "approach_forward",
-    "move_obj_table",
-    "move_to_rest_right",
-    "approach_right",
-    "move_obj_shelf",
-    "move_to_rest_down",
-)
-
-
 @pytest.mark.slow
-@pytest.mark.skipif(not DATA.exists(), reason="the shared recordings sit beside the repository")
-def test_the_main_segments_of_the_shared_recordings_are_grouped():
+def test_the_main_segments_of_the_shared_recordings_are_grouped(shared_recordings):
     """Measured: 100 % unsupervised; few-shot 1-NN 94 % on average over the labelled demonstration (the issue
     asks 95 %), 77 % in the worst case (one subject labelled, the other subject's runs classified)."""
-    per_demo = [ground_truth_segments(load(path), MAIN_SEGMENTS) for path in sorted(DATA.glob("*.tsv"))]
+    per_demo = [
+        ground_truth_segments(load(path), PICK_AND_PLACE_MAIN_SEGMENTS)
+        for path in sorted(shared_recordings.glob("*.tsv"))
+    ]
     segments = [s for demo in per_demo for s in demo]
     assert len(segments) == 90
     assert grouping_accuracy([s.label for s in segments], cluster(segments, 6)) >= 0.99
