@@ -195,6 +195,7 @@ def _segment(args: argparse.Namespace) -> int:
 
     demo = load(args.file)
     segmentation = segment(demo, marker=args.marker)
+    labels = _few_shot_labels(args, demo, segmentation) if args.examples else [None] * len(segmentation)
     frames = [int(frame) for frame in segmentation.frames]
     times = [float(time) for time in segmentation.times]
     result = {
@@ -204,7 +205,8 @@ def _segment(args: argparse.Namespace) -> int:
                 "end_frame": frames[k + 1],
                 "start_time": times[k],
                 "end_time": times[k + 1],
-                "label": None,
+                "label": labels[k],
+                "model": segmentation.models[k],
             }
             for k in range(len(segmentation))
         ],
@@ -220,9 +222,36 @@ def _segment(args: argparse.Namespace) -> int:
         for k, entry in enumerate(result["segments"]):
             print(
                 f"{k:2d}  frames {entry['start_frame']}-{entry['end_frame']}  "
-                f"{entry['start_time']:.2f}-{entry['end_time']:.2f} s  {segmentation.models[k]}"
+                f"{entry['start_time']:.2f}-{entry['end_time']:.2f} s  {entry['model']}"
+                + (f"  {entry['label']}" if entry["label"] else "")
             )
     return 0
+
+
+def _few_shot_labels(args: argparse.Namespace, demo, segmentation) -> list[str | None]:
+    """Labels of the movements found: those of the nearest annotated segments of the example recordings
+    (holds stay unlabelled)."""
+    from besman.learning import DemonstrationError, load
+    from besman.learning.labelling import ground_truth_segments, label_few_shot, segments_of
+
+    wanted = args.example_labels.split(",") if args.example_labels else None
+    examples = []
+    for path in args.examples:
+        annotated = ground_truth_segments(load(path), wanted)
+        if not annotated:
+            raise DemonstrationError(
+                f"{path}: no annotated segments{' with labels ' + args.example_labels if wanted else ''} "
+                "(expected a *_manually_segmented.json beside it)"
+            )
+        examples += annotated
+    found = segments_of(demo, segmentation)
+    moving = [k for k, hold in enumerate(segmentation.holds) if not hold]
+    labels: list[str | None] = [None] * len(found)
+    for k, label in zip(
+        moving, label_few_shot(examples, [found[k] for k in moving], marker=args.marker), strict=True
+    ):
+        labels[k] = label
+    return labels
 
 
 def _demos_show(args: argparse.Namespace) -> int:
@@ -310,11 +339,20 @@ def build_parser() -> argparse.ArgumentParser:
     task_show.add_argument("--json", action="store_true")
     task_show.set_defaults(handler=_tasks_show)
 
-    segment = commands.add_parser("segment", help="cut a recording into segments (hand speed, Bayesian)")
+    segment = commands.add_parser("segment", help="cut a recording into segments (hand velocity, Bayesian)")
     segment.add_argument("file", help="a recording (.tsv Qualisys export, .csv, .npz)")
     segment.add_argument("--marker", default="Hand top", help="the marker to segment (default: Hand top)")
     segment.add_argument("--json", action="store_true", help="print the segments as JSON")
     segment.add_argument("--plot", metavar="PNG", help="write the speed with the boundaries to this file")
+    segment.add_argument(
+        "--examples",
+        nargs="+",
+        metavar="FILE",
+        help="annotated recordings whose segments label the movements found (few-shot, nearest neighbour)",
+    )
+    segment.add_argument(
+        "--example-labels", metavar="L1,L2", help="use only the examples' segments with these labels"
+    )
     segment.set_defaults(handler=_segment)
 
     demos = commands.add_parser("demos", help="inspect recordings")

@@ -107,6 +107,12 @@ class Demonstration:
             }
         )
 
+    def nearest_indices(self, times: np.ndarray) -> np.ndarray:
+        """The sample index nearest to each time (s)."""
+        return np.clip(
+            np.searchsorted(self.times, np.asarray(times) - 0.5 / self.rate), 0, len(self.times) - 1
+        )
+
     def frame_index(self, frame: int) -> int:
         """The sample index of a frame number."""
         index = int(np.searchsorted(self.frames, frame))

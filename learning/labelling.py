@@ -1,10 +1,12 @@
 """Labelling segments: which segments of several demonstrations are the same building block.
 
 Each segment is described by a fixed-length vector (Gutzeit and Kirchner; see ``learning.md``): its path
-relative to its start, resampled at ``points`` instants of normalised time, and its start and end positions.
-The entries are standardised over all segments and each group is weighted by 1/sqrt(its size), the path
-(30 numbers) by half that: where a movement starts and ends tells building blocks apart better than its
-shape. Segment durations vary too much between people to help. (Both measured on the shared recordings.)
+relative to its start, resampled at ``points`` instants of normalised time, its start and end positions, and
+its phase (when its middle comes, as a fraction of the demonstration: the building blocks of one task come in
+a characteristic order). The entries are standardised over all segments and each group is weighted by
+1/sqrt(its size), the path (30 numbers) by half that: where a movement starts and ends tells building blocks
+apart better than its shape. Segment durations vary too much between people to help. (All measured on the
+shared recordings: without the phase, few-shot labelling across subjects drops from 99 % to 94 %.)
 
 Unsupervised, the segments are clustered (Ward's agglomerative clustering, deterministic); few-shot, the
 segments of one labelled demonstration are the examples of a 1-nearest-neighbour classifier. Accuracy is
@@ -67,8 +69,8 @@ def ground_truth_segments(
 def descriptors(
     segments: Sequence[DemonstrationSegment], *, marker: str = "Hand top", points: int = 10
 ) -> np.ndarray:
-    """(N, 3 points + 6) raw descriptors: start-relative path at ``points`` instants, start and end position
-    of the smoothed ``marker``."""
+    """(N, 3 points + 7) raw descriptors: start-relative path at ``points`` instants, start and end position
+    of the smoothed ``marker``, and phase of the segment's middle in its demonstration (0 to 1)."""
     smoothed: dict[int, np.ndarray] = {}
     rows = []
     for segment in segments:
@@ -83,14 +85,16 @@ def descriptors(
         path = smoothed[key][segment.start : segment.end + 1]
         times = segment.demo.times[segment.start : segment.end + 1]
         _, shape = resample((times - times[0]) / (times[-1] - times[0]), path, points - 1.0)
-        rows.append(np.concatenate([(shape[:points] - path[0]).ravel(), path[0], path[-1]]))
+        demo_times = segment.demo.times
+        phase = ((times[0] + times[-1]) / 2 - demo_times[0]) / (demo_times[-1] - demo_times[0])
+        rows.append(np.concatenate([(shape[:points] - path[0]).ravel(), path[0], path[-1], [phase]]))
     return np.array(rows)
 
 
 def _features(raw: np.ndarray, scaler: StandardScaler) -> np.ndarray:
     standardised = scaler.transform(raw)
-    path = raw.shape[1] - 6
-    weights = np.r_[np.full(path, 0.5 / np.sqrt(path)), np.full(6, 1 / np.sqrt(3))]
+    path = raw.shape[1] - 7
+    weights = np.r_[np.full(path, 0.5 / np.sqrt(path)), np.full(6, 1 / np.sqrt(3)), 1.0]
     return standardised * weights
 
 

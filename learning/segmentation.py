@@ -1,22 +1,30 @@
 """Bayesian multiple change-point segmentation (Fearnhead and Liu, JRSS B 2007), exact and offline.
 
 A recording y (T samples, d dimensions) is cut into segments; each segment follows one of several linear
-regression models q (polynomials in the time since the segment started: a hold is degree 0, a movement
-degree 3 or 5) with conjugate priors: coefficients beta | Sigma ~ MN(0, D, Sigma), noise Sigma ~ IW(nu,
+regression models q with conjugate priors: coefficients beta | Sigma ~ MN(0, D, Sigma), noise Sigma ~ IW(nu,
 Gamma). The segment evidence then has the closed form (matrix-normal / inverse-Wishart; for d = 1 it is a
 multivariate Student-t density)::
 
     log P = -(n d / 2) log pi + (d / 2)(log|M| - log|D|) + (nu / 2) log|Gamma| - ((n + nu) / 2) log|Gamma + S|
             + sum_i [lnGamma((n + nu + 1 - i) / 2) - lnGamma((nu + 1 - i) / 2)]
 
-with M = (H^T H + D^-1)^-1, B = H^T Y, S = Y^T Y - B^T M B. Because the basis depends only on the time since
-the segment's start, H^T H depends only on the length and H^T Y grows by rank-1 updates, so the evidence of
-every segment [j, t) is computed for all j at once as t advances (O(T^2) evidences, vectorised over j).
+with M = (H^T H + D^-1)^-1, B = H^T Y, S = Y^T Y - B^T M B. The regressors H of a segment depend only on its
+length, so the evidence of every segment [j, t) of one length is computed for all j at once (O(T^2)
+evidences, vectorised over j).
 
-Segment lengths have a geometric prior with hazard ``1 / expected length`` beyond a minimum length. From the
-evidences: the MAP segmentation (Viterbi), the posterior probability of a change point at every sample
-(forward-backward), and exact samples from the posterior (backward filtering, forward sampling).
-Hyperparameters default to data-driven values: the noise scale from the first differences of the data.
+Hand recordings are segmented by the hand's velocity (the default models, ``VELOCITY_MODELS``): the hand is
+still (zero velocity), drifts slowly (constant velocity: fine positioning while grasping), or makes a movement
+whose velocity rises from and falls back to zero along a bell-shaped profile (a reach, Flash and Hogan 1985;
+the vMCI model of Senger et al., ICPR 2014, uses one such bump on the speed), possibly with a corrective
+sub-movement. Each dimension has its own coefficients, so a straight reach is one bump in every coordinate.
+
+Segment lengths have a geometric prior with hazard ``1 / expected length`` beyond a minimum length; a model
+may ask for a longer minimum (a pause shorter than that is a turning point, not a hold). From the evidences:
+the MAP segmentation (Viterbi), the posterior probability of a change point at every sample
+(forward-backward), and exact samples from the posterior (backward filtering, forward sampling). For long
+recordings the MAP can instead be found online over a bounded set of candidate change points, thinned by
+stratified optimal resampling. Hyperparameters default to data-driven values: the noise scale comes from the
+first differences of the data.
 """
 
 from __future__ import annotations
@@ -36,27 +44,44 @@ class SegmentModel:
     """A linear regression model of one segment.
 
     Attributes:
-        name: what the model stands for ("hold", "reach", ...).
-        degree: polynomial terms 1, t, ..., t^degree in the time t since the segment began (s); -1: none.
-        bumps: speed-bump terms s^a (1 - s)^b, each peaking at 1, in the normalised time s = (i + 1/2) / n
-            of a segment of n samples; they stretch with the segment (a bell-shaped speed profile).
+        name: what the model stands for ("still", "reach", ...).
+        degree: polynomial terms 1, t, ..., t^degree in the time t since the segment began (s); -1: none (a
+            segment of this model is zero plus noise).
+        bumps: bump terms s^a (1 - s)^b, each peaking at 1, in the normalised time s = (i + 1/2) / n of a
+            segment of n samples; they stretch with the segment (a bell-shaped velocity or speed profile).
         bump_scale: prior standard deviation of a bump's height (units of y).
+        min_length: shortest segment of this model (s), beyond the prior's ``min_length``.
+        weight: prior weight of the model (the prior probabilities of a set of models are their normalised
+            weights).
+        hold: whether a segment of this model is a pause rather than a movement (holds get no label).
     """
 
     name: str
     degree: int = 0
     bumps: tuple[tuple[float, float], ...] = ()
     bump_scale: float = 2.0
+    min_length: float = 0.0
+    weight: float = 1.0
+    hold: bool = False
 
     def basis(self, n: int, rate: float) -> np.ndarray:
         """H (n, m): the regressors of a segment of n samples."""
-        offsets = np.arange(n) / rate
+        return self.padded_basis(np.array([n]), rate)[0]
+
+    def padded_basis(self, lengths: np.ndarray, rate: float) -> np.ndarray:
+        """H (k, n_max, m): the regressors of k segments of the given lengths, zero beyond each length."""
+        lengths = np.asarray(lengths)
+        samples = np.arange(int(lengths.max()))
+        inside = samples[None, :] < lengths[:, None]
+        offsets = np.broadcast_to(samples / rate, inside.shape)
         columns = [offsets**power for power in range(self.degree + 1)]
-        s = (np.arange(n) + 0.5) / n
+        s = np.minimum((samples[None, :] + 0.5) / lengths[:, None], 1.0)
         for a, b in self.bumps:
             peak = a / (a + b)
             columns.append(s**a * (1.0 - s) ** b / (peak**a * (1.0 - peak) ** b))
-        return np.column_stack(columns)
+        if not columns:
+            return np.zeros((*inside.shape, 0))
+        return np.stack(columns, axis=-1) * inside[..., None]
 
     def scales(self) -> np.ndarray:
         """Prior standard deviations of the coefficients (units of y per s^power)."""
@@ -69,21 +94,32 @@ COEFFICIENT_SCALES = (1.0, 1.0, 5.0, 20.0, 50.0, 100.0)
 
 # Models of a position signal: a hold and smooth movements (minimum-jerk paths are quintic in time).
 POLYNOMIAL_MODELS = (
-    SegmentModel("hold", degree=0),
+    SegmentModel("hold", degree=0, hold=True),
     SegmentModel("move", degree=3),
     SegmentModel("move quintic", degree=5),
 )
 # The vMCI velocity model: one bell-shaped speed bump on a constant.
 VMCI = SegmentModel("vmci", degree=0, bumps=((2.0, 2.0),))
-# Models of a speed signal (the default for hand recordings): a hold (constant speed) and single reaching
-# movements whose speed rises from and falls back to zero, peaking in the middle, early or late; the last
-# one's width adapts (two symmetric bumps of different sharpness).
-SPEED_MODELS = (
-    SegmentModel("hold", degree=0),
+# Single movements whose speed (or velocity along a straight path) rises from and falls back to zero: peaking
+# in the middle, early or late; the last one's width adapts (two symmetric bumps of different sharpness).
+REACHES = (
     SegmentModel("reach", degree=-1, bumps=((2.0, 2.0),)),
     SegmentModel("reach early peak", degree=-1, bumps=((2.0, 3.0),)),
     SegmentModel("reach late peak", degree=-1, bumps=((3.0, 2.0),)),
     SegmentModel("reach variable width", degree=-1, bumps=((2.0, 2.0), (3.0, 3.0))),
+)
+# Models of a speed signal: a hold (constant speed) and reaches.
+SPEED_MODELS = (SegmentModel("hold", degree=0, hold=True), *REACHES)
+# Models of a hand's velocity (the default). Pauses shorter than 0.4 s are turning points between movements,
+# not holds. Holds and movements are a priori equally likely (the two holds weigh as much as the six
+# movements together).
+HOLD_MIN_LENGTH = 0.4
+VELOCITY_MODELS = (
+    SegmentModel("still", degree=-1, min_length=HOLD_MIN_LENGTH, weight=3.0, hold=True),
+    SegmentModel("drift", degree=0, min_length=HOLD_MIN_LENGTH, weight=3.0, hold=True),
+    *REACHES,
+    SegmentModel("reach with correction", degree=-1, bumps=((2.0, 5.0), (5.0, 2.0))),
+    SegmentModel("smooth movement", degree=-1, bumps=((2.0, 2.0), (2.0, 3.0), (3.0, 2.0))),
 )
 
 
@@ -93,10 +129,10 @@ class SegmentationPrior:
 
     noise: float | None = None  # expected noise standard deviation per dimension
     # With noise None: noise_factor x the first-difference estimate, because segments also deviate from
-    # their model (a human's speed is not exactly a bump), not only by sensor noise.
-    noise_factor: float = 2.0
-    nu: float | None = None  # inverse-Wishart degrees of freedom (default d + 2)
-    expected_length: float = 1.0  # s, mean segment length beyond the minimum (geometric prior)
+    # their model (a human's velocity is not exactly a bump), not only by sensor noise.
+    noise_factor: float = 3.0
+    nu: float = 10.0  # inverse-Wishart degrees of freedom (> d - 1): the noise's pseudo-observations
+    expected_length: float = 0.7  # s, mean segment length beyond the minimum (geometric prior)
     min_length: float = 0.15  # s, shortest segment
 
 
@@ -107,44 +143,103 @@ def noise_scale(y: np.ndarray) -> float:
     return float(max(np.mean(mad) * 1.4826 / math.sqrt(2.0), 1e-12))
 
 
+@dataclass(frozen=True)
+class _EvidenceKernel:
+    """The closed-form segment evidence of one model on one signal, for any batch of segments."""
+
+    rate: float
+    model: SegmentModel
+    dimensions: int
+    nu: float
+    gamma: float  # Gamma = gamma I: Sigma is a priori of the order of sigma^2 I
+    inverse_prior: np.ndarray  # D^-1, D in units of the noise
+    log_det_prior: float  # log|D|
+
+    @classmethod
+    def of(cls, y: np.ndarray, rate: float, model: SegmentModel, prior: SegmentationPrior) -> _EvidenceKernel:
+        d = y.shape[1]
+        if not prior.nu > d - 1:
+            raise ValueError(
+                f"SegmentationPrior.nu must exceed d - 1 = {d - 1} for {d}-dimensional data, got {prior.nu!r}"
+            )
+        sigma = prior.noise if prior.noise is not None else prior.noise_factor * noise_scale(y)
+        scales = model.scales() / sigma  # beta ~ N(0, Sigma D)
+        return cls(
+            rate,
+            model,
+            d,
+            prior.nu,
+            prior.nu * sigma**2,
+            np.diag(1.0 / scales**2),
+            float(np.sum(np.log(scales**2))),
+        )
+
+    def __call__(
+        self, lengths: np.ndarray, gram: np.ndarray, cross: np.ndarray, second: np.ndarray
+    ) -> np.ndarray:
+        """log P(y_k) for k segments of ``lengths`` with H^T H ``gram`` (k or 1, m, m), H^T Y ``cross`` (k, m,
+        d) and Y^T Y ``second`` (k, d, d)."""
+        d, nu = self.dimensions, self.nu
+        posterior = np.linalg.inv(gram + self.inverse_prior)  # M
+        residual = second - np.swapaxes(cross, 1, 2) @ (posterior @ cross)
+        log_det = np.linalg.slogdet(self.gamma * np.eye(d)[None] + residual)[1]
+        gamma_terms = sum(
+            gammaln((lengths + nu + 1 - i) / 2.0) - gammaln((nu + 1 - i) / 2.0) for i in range(1, d + 1)
+        )
+        return (
+            -(lengths * d / 2.0) * math.log(math.pi)
+            + (d / 2.0) * (np.linalg.slogdet(posterior)[1] - self.log_det_prior)
+            + (nu / 2.0) * d * math.log(self.gamma)
+            + gamma_terms
+            - ((lengths + nu) / 2.0) * log_det
+        )
+
+    def segments(self, y: np.ndarray, cumulative: np.ndarray, starts: np.ndarray, end: int) -> np.ndarray:
+        """log P(y[j:end]) for every j in ``starts`` (-inf below the model's minimum length); ``cumulative``
+        from ``_second_moments(y)``."""
+        lengths = end - starts
+        basis = self.model.padded_basis(lengths, self.rate)  # zero beyond each segment's end
+        index = np.minimum(starts[:, None] + np.arange(basis.shape[1])[None, :], len(y) - 1)
+        windows = y[index]
+        gram = np.einsum("kim,kin->kmn", basis, basis)
+        cross = np.einsum("kim,kid->kmd", basis, windows)
+        values = self(lengths, gram, cross, cumulative[end] - cumulative[starts])
+        return np.where(lengths >= max(1, round(self.model.min_length * self.rate)), values, -np.inf)
+
+
+def _as_columns(y: np.ndarray) -> np.ndarray:
+    y = np.asarray(y, dtype=float)
+    return y[:, None] if y.ndim == 1 else y
+
+
+def _second_moments(y: np.ndarray) -> np.ndarray:
+    """Cumulative sums of y y^T (T+1, d, d): Y^T Y of y[j:t] is the difference of two of them."""
+    outer = np.einsum("ta,tb->tab", y, y)
+    return np.concatenate([np.zeros((1, *outer.shape[1:])), np.cumsum(outer, axis=0)])
+
+
 def segment_evidences(
     y: np.ndarray, rate: float, model: SegmentModel, prior: SegmentationPrior
 ) -> np.ndarray:
-    """E (T+1, T+1): E[j, t] = log P(y[j:t] | one segment of ``model``) for j < t (-inf elsewhere).
+    """E (T+1, T+1): E[j, t] = log P(y[j:t] | one segment of ``model``) for j < t (-inf elsewhere and for
+    segments shorter than the model's ``min_length``).
 
     For every segment length n the regressors H are fixed, so H^T Y of all segments of that length is a
     correlation of y with the columns of H, and Y^T Y a difference of cumulative sums.
     """
-    y = np.asarray(y, dtype=float)
-    if y.ndim == 1:
-        y = y[:, None]
-    n_samples, d = y.shape
-    sigma = prior.noise if prior.noise is not None else prior.noise_factor * noise_scale(y)
-    nu = prior.nu if prior.nu is not None else d + 2.0
-    gamma = nu * sigma**2  # Gamma = gamma I: Sigma is a priori of the order of sigma^2 I
-    scales = model.scales() / sigma  # beta ~ N(0, Sigma D): D in units of the noise
-    log_det_d = float(np.sum(np.log(scales**2)))
-    inverse_prior = np.diag(1.0 / scales**2)
-    outer = np.einsum("ta,tb->tab", y, y)
-    cumulative = np.concatenate([np.zeros((1, d, d)), np.cumsum(outer, axis=0)])
-    gamma_terms = sum(gammaln((nu + 1 - i) / 2.0) for i in range(1, d + 1))
+    y = _as_columns(y)
+    n_samples = len(y)
+    kernel = _EvidenceKernel.of(y, rate, model, prior)
+    cumulative = _second_moments(y)
     evidences = np.full((n_samples + 1, n_samples + 1), -np.inf)
-    for n in range(1, n_samples + 1):
+    for n in range(max(1, round(model.min_length * rate)), n_samples + 1):
         basis = model.basis(n, rate)
-        posterior = np.linalg.inv(basis.T @ basis + inverse_prior)  # M
         windows = np.lib.stride_tricks.sliding_window_view(y, n, axis=0)  # (T - n + 1, d, n)
-        cross = np.einsum("jdn,nm->jmd", windows, basis)  # H^T Y of every segment of length n
-        residual = cumulative[n:] - cumulative[:-n] - np.einsum("jmd,mk,jke->jde", cross, posterior, cross)
-        log_det = np.linalg.slogdet(gamma * np.eye(d)[None] + residual)[1]
-        constant = (
-            -(n * d / 2.0) * math.log(math.pi)
-            + (d / 2.0) * (np.linalg.slogdet(posterior)[1] - log_det_d)
-            + (nu / 2.0) * d * math.log(gamma)
-            + sum(gammaln((n + nu + 1 - i) / 2.0) for i in range(1, d + 1))
-            - gamma_terms
-        )
+        cross = np.swapaxes(windows @ basis, 1, 2)  # H^T Y of every segment of length n
         starts = np.arange(n_samples - n + 1)
-        evidences[starts, starts + n] = constant - ((n + nu) / 2.0) * log_det
+        evidences[starts, starts + n] = kernel(
+            np.full(len(starts), n), (basis.T @ basis)[None], cross, cumulative[n:] - cumulative[:-n]
+        )
     return evidences
 
 
@@ -192,6 +287,16 @@ def _backward(combined: np.ndarray, log_g: np.ndarray, log_survival: np.ndarray)
     return backward
 
 
+def _trace_back(back: np.ndarray, choice: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Boundaries and models of the best segmentation from the Viterbi back pointers."""
+    boundaries, models, t = [len(back) - 1], [], len(back) - 1
+    while t > 0:
+        models.append(choice[t])
+        t = back[t]
+        boundaries.append(t)
+    return np.array(boundaries[::-1]), np.array(models[::-1])
+
+
 def map_segmentation(
     evidences: list[np.ndarray], log_g: np.ndarray, log_survival: np.ndarray, model_prior: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -208,12 +313,82 @@ def map_segmentation(
         scores = best[:t, None] + stacked[:, :t, t].T + lengths_prior[:, None]  # (j, q)
         j, q = np.unravel_index(np.argmax(scores), scores.shape)
         best[t], back[t], choice[t] = scores[j, q], j, q
-    boundaries, models, t = [n_samples], [], n_samples
-    while t > 0:
-        models.append(choice[t])
-        t = back[t]
-        boundaries.append(t)
-    return np.array(boundaries[::-1]), np.array(models[::-1])
+    return _trace_back(back, choice)
+
+
+def stratified_optimal_resampling(
+    log_weights: np.ndarray, keep: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Thins particles to ``keep`` (Fearnhead and Clifford, JRSS B 2003): those with normalised weight at
+    least alpha survive as they are; the rest are resampled in strata of width alpha and the survivors get
+    weight alpha, which keeps the weights unbiased. Returns the kept indices (sorted) and the log factors
+    that turn their old weights into the new ones."""
+    weights = np.exp(log_weights - logsumexp(log_weights))
+    positive = np.flatnonzero(weights > 0)
+    if len(positive) <= keep:
+        return positive, np.zeros(len(positive))
+    descending = np.sort(weights)[::-1]
+    tails = np.cumsum(descending[::-1])[::-1]  # tails[a] = sum of all but the a largest
+    for certain in range(keep):
+        alpha = tails[certain] / (keep - certain)
+        if descending[certain] < alpha:
+            break
+    small = np.flatnonzero(weights < alpha)
+    points = rng.uniform(0.0, alpha) + alpha * np.arange(keep - certain)
+    cumulative = np.cumsum(weights[small])
+    drawn = small[np.minimum(np.searchsorted(cumulative, points), len(small) - 1)]
+    kept = np.union1d(np.flatnonzero(weights >= alpha), drawn)
+    factors = np.where(weights[kept] >= alpha, 0.0, math.log(alpha) - np.log(weights[kept]))
+    return kept, factors
+
+
+def pruned_map_segmentation(
+    y: np.ndarray,
+    rate: float,
+    models: tuple[SegmentModel, ...],
+    prior: SegmentationPrior,
+    model_prior: np.ndarray,
+    max_particles: int,
+    seed: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """MAP segmentation with at most ``max_particles`` candidates for the last change point (Fearnhead and
+    Liu 2007, section 3.3): after each sample the filter's candidates are thinned by stratified optimal
+    resampling, and the online Viterbi recursion runs over the survivors. Costs O(T max_particles L) for
+    segments of up to L samples instead of O(T^2) time and memory; with ``max_particles`` >= T it is exact."""
+    if max_particles < 2:
+        raise ValueError(f"max_particles must be at least 2, got {max_particles!r}")
+    y = _as_columns(y)
+    n_samples = len(y)
+    kernels = [_EvidenceKernel.of(y, rate, model, prior) for model in models]
+    cumulative = _second_moments(y)
+    log_g, log_survival = length_prior(n_samples, rate, prior)
+    # log P(a segment lasts at least n samples): 0 below the minimum length.
+    log_ongoing = np.where(np.isfinite(log_survival), log_survival, 0.0)
+    forward, best = np.full(n_samples + 1, -np.inf), np.full(n_samples + 1, -np.inf)
+    forward[0] = best[0] = 0.0
+    back = np.zeros(n_samples + 1, dtype=int)
+    choice = np.zeros(n_samples + 1, dtype=int)
+    particles = np.array([0])
+    rng = np.random.default_rng(seed)
+    for t in range(1, n_samples + 1):
+        lengths = t - particles
+        stacked = np.stack([kernel.segments(y, cumulative, particles, t) for kernel in kernels])
+        stacked += model_prior[:, None]
+        lengths_prior = log_survival[lengths] if t == n_samples else log_g[lengths]
+        scores = best[particles][None, :] + stacked + lengths_prior[None, :]  # (q, particle)
+        q, k = np.unravel_index(np.argmax(scores), scores.shape)
+        best[t], back[t], choice[t] = scores[q, k], particles[k], q
+        if t == n_samples:
+            break
+        combined = logsumexp(stacked, axis=0)
+        forward[t] = logsumexp(forward[particles] + combined + log_g[lengths])
+        weights = np.r_[forward[particles] + combined + log_ongoing[lengths], forward[t]]
+        particles = np.r_[particles, t]
+        if len(particles) > max_particles:
+            kept, factors = stratified_optimal_resampling(weights, max_particles, rng)
+            particles = particles[kept]
+            forward[particles] += factors
+    return _trace_back(back, choice)
 
 
 def change_probabilities(
@@ -269,7 +444,9 @@ class Segmentation:
         times: the demonstration's times at the boundaries (s).
         frames: the demonstration's frame numbers at the boundaries.
         models: the name of each segment's model.
-        signal_times, signal: the signal that was segmented (the smoothed hand speed, resampled).
+        holds: whether each segment is a pause (its model is a hold).
+        signal_times, signal: the signal that was segmented (the smoothed hand velocity (T, 3) or speed (T,),
+            resampled).
         change_probability: posterior probability of a change point at each sample of ``signal``, when asked.
     """
 
@@ -277,6 +454,7 @@ class Segmentation:
     times: np.ndarray
     frames: np.ndarray
     models: tuple[str, ...]
+    holds: tuple[bool, ...]
     signal_times: np.ndarray
     signal: np.ndarray
     change_probability: np.ndarray | None = field(default=None)
@@ -284,43 +462,77 @@ class Segmentation:
     def __len__(self) -> int:
         return len(self.models)
 
+    @property
+    def speed(self) -> np.ndarray:
+        """The segmented signal's magnitude at each sample (the hand speed)."""
+        return np.abs(self.signal) if self.signal.ndim == 1 else np.linalg.norm(self.signal, axis=1)
+
+
+SIGNALS = ("velocity", "speed")
+
 
 def segment(
     demo: Demonstration,
     *,
     marker: str = "Hand top",
+    signal: str = "velocity",
     rate: float = 20.0,
-    models: tuple[SegmentModel, ...] = SPEED_MODELS,
+    models: tuple[SegmentModel, ...] | None = None,
     prior: SegmentationPrior = SegmentationPrior(),
     smoothing: SmoothingConfig | None = None,
     posterior: bool = False,
+    max_particles: int | None = None,
+    seed: int = 0,
 ) -> Segmentation:
-    """Segments a demonstration by its hand speed: Kalman/RTS-smoothed ``marker`` speed, resampled at ``rate``
-    (Hz), MAP segmentation under ``models`` with equal model priors; ``posterior`` adds the change-point
-    probabilities. The defaults need no tuning per recording (the noise scale is estimated from the data).
+    """Segments a demonstration by the Kalman/RTS-smoothed ``marker``'s ``signal`` ("velocity" or "speed"),
+    resampled at ``rate`` (Hz): the MAP segmentation under ``models`` (default: ``VELOCITY_MODELS`` or
+    ``SPEED_MODELS``, by signal) with their weights as model priors; ``posterior`` adds the change-point
+    probabilities. A boundary lies halfway between the last sample of one segment and the first of the next.
+    The defaults need no tuning per recording (the noise scale is estimated from the data).
+
+    Exact inference takes O(T^2) time and memory (about 0.5 s for 20 s at 20 Hz); for long recordings,
+    ``max_particles`` bounds the candidate change points (``pruned_map_segmentation``; randomised: ``seed``).
     """
-    speed = smooth(demo, marker, smoothing or SmoothingConfig()).speed
-    signal_times, signal = resample(demo.times, speed, rate)
+    if signal not in SIGNALS:
+        raise ValueError(f"signal must be one of {SIGNALS}, got {signal!r}")
+    if posterior and max_particles is not None:
+        raise ValueError("posterior change-point probabilities need exact inference (max_particles=None)")
+    if models is None:
+        models = VELOCITY_MODELS if signal == "velocity" else SPEED_MODELS
+    smoothed = smooth(demo, marker, smoothing or SmoothingConfig())
+    signal_times, values = resample(
+        demo.times, smoothed.velocities if signal == "velocity" else smoothed.speed, rate
+    )
     minimum = max(1, round(prior.min_length * rate))
-    if len(signal) < 2 * minimum:
+    if len(values) < 2 * minimum:
         raise DemonstrationError(
             f"{demo.source or 'demonstration'}: the recording lasts {demo.duration:.2f} s, shorter than two "
             f"segments of the minimum length {prior.min_length:g} s"
         )
-    evidences = [segment_evidences(signal, rate, model, prior) for model in models]
-    log_g, log_survival = length_prior(len(signal), rate, prior)
-    model_prior = np.full(len(models), -math.log(len(models)))
-    points, choices = map_segmentation(evidences, log_g, log_survival, model_prior)
-    probability = change_probabilities(evidences, log_g, log_survival, model_prior)[0] if posterior else None
+    weights = np.array([model.weight for model in models], dtype=float)
+    model_prior = np.log(weights / weights.sum())
+    probability = None
+    if max_particles is not None:
+        points, choices = pruned_map_segmentation(
+            values, rate, models, prior, model_prior, max_particles, seed
+        )
+    else:
+        evidences = [segment_evidences(values, rate, model, prior) for model in models]
+        log_g, log_survival = length_prior(len(values), rate, prior)
+        points, choices = map_segmentation(evidences, log_g, log_survival, model_prior)
+        if posterior:
+            probability = change_probabilities(evidences, log_g, log_survival, model_prior)[0]
     boundary_times = np.r_[signal_times, demo.times[-1]][points]
-    indices = np.clip(np.searchsorted(demo.times, boundary_times - 0.5 / demo.rate), 0, len(demo.times) - 1)
+    boundary_times[1:-1] -= 0.5 / rate
+    indices = demo.nearest_indices(boundary_times)
     return Segmentation(
         boundaries=indices,
         times=demo.times[indices],
         frames=demo.frames[indices],
         models=tuple(models[q].name for q in choices),
+        holds=tuple(models[q].hold for q in choices),
         signal_times=signal_times,
-        signal=signal,
+        signal=values,
         change_probability=probability,
     )
 

@@ -23,9 +23,7 @@ def plot_segmentation(demo: Demonstration, segmentation: Segmentation, path: str
     """Writes a PNG of the segmented speed with the boundaries (solid) and any ground-truth boundaries of
     the demonstration (dashed)."""
     figure, axes = plt.subplots(figsize=(12, 3.5), layout="constrained")
-    axes.plot(
-        segmentation.signal_times, segmentation.signal, color="black", linewidth=1.0, label="hand speed"
-    )
+    axes.plot(segmentation.signal_times, segmentation.speed, color="black", linewidth=1.0, label="hand speed")
     for k, time in enumerate(segmentation.times):
         axes.axvline(time, color="tab:blue", linewidth=1.5, label="boundaries" if k == 0 else None)
     truth = [demo.times[demo.frame_index(frame)] for frame in demo.boundary_frames()]

@@ -68,12 +68,15 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings)
     assert report["recordings"] == 15
     assert set(report["methods"]) == {
         "ours",
+        "ours (pruned, 50 particles)",
         "speed minima",
         "ruptures Pelt (linear)",
         "ruptures Dynp (linear)",
     }
-    best_other = max(s["f1_0.2"] for name, s in report["methods"].items() if name != "ours")
+    best_other = max(s["f1_0.2"] for name, s in report["methods"].items() if not name.startswith("ours"))
     assert report["ours_vs_best_other_f1_0.2"] == pytest.approx(
         report["methods"]["ours"]["f1_0.2"] / best_other
     )
     assert report["ours_best_f1"] and report["methods"]["ours"]["seconds"] < 1.0
+    long = report["long_recording"]
+    assert long["duration_s"] > 100 and long["pruned_vs_exact_f1_0.1"] > 0.9

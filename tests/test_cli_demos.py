@@ -9,7 +9,7 @@ from PIL import Image
 from besman.cli import main
 
 
-def recording(tmp_path, seed=0, rate=60.0, gap=None):
+def recording(tmp_path, seed=0, rate=60.0, gap=None, name="reach"):
     """A Qualisys-style TSV of one hand marker: hold, minimum-jerk reach, hold; frames start at 500."""
     rng = np.random.default_rng(seed)
     s = np.arange(60) / 60
@@ -25,7 +25,7 @@ def recording(tmp_path, seed=0, rate=60.0, gap=None):
     for i, row in enumerate(positions):
         cells = ["null"] * 3 if gap and gap[0] <= i < gap[1] else [f"{v:.3f}" for v in row]
         rows.append("\t".join([str(500 + i), f"{(500 + i) / rate:.5f}", *cells]) + "\t")
-    file = tmp_path / "reach.tsv"
+    file = tmp_path / f"{name}.tsv"
     file.write_text("\n".join(header + rows) + "\n")
     return file
 
@@ -67,3 +67,18 @@ def test_segment_errors_name_the_file_and_the_problem(capsys, tmp_path):
     assert code == 2 and str(file) in err and "no marker 'Wrist'" in err
     code, _, err = run(capsys, "segment", str(tmp_path / "missing.tsv"))
     assert code == 2 and "missing.tsv" in err
+
+
+def test_segment_labels_the_movements_like_the_nearest_annotated_example(capsys, tmp_path):
+    example = recording(tmp_path, seed=1, name="example")
+    annotation = [{"start index": 560, "end index": 620, "label": "reach"}]
+    (tmp_path / "example_manually_segmented.json").write_text(json.dumps(annotation))
+    file = recording(tmp_path, seed=2)
+    code, out, _ = run(capsys, "segment", str(file), "--json", "--examples", str(example))
+    segments = json.loads(out)["segments"]
+    assert code == 0 and [s["label"] for s in segments] == [None, "reach", None]
+    assert [s["model"] for s in segments][0::2] == ["still", "still"]
+    code, out, _ = run(capsys, "segment", str(file), "--examples", str(example))
+    assert code == 0 and out.splitlines()[1].endswith("reach")
+    code, _, err = run(capsys, "segment", str(file), "--examples", str(file))
+    assert code != 0 and f"{file}: no annotated segments" in err

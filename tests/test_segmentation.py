@@ -19,19 +19,28 @@ from besman.learning.segmentation import (
     change_probabilities,
     length_prior,
     map_segmentation,
+    pruned_map_segmentation,
     sample_segmentations,
     segment,
     segment_evidences,
+    stratified_optimal_resampling,
 )
 
 
 @pytest.mark.parametrize(
     "model",
-    [SegmentModel("m", 0), SegmentModel("m", 1), SegmentModel("m", 3), VMCI, SPEED_MODELS[-1]],
+    [
+        SegmentModel("m", 0),
+        SegmentModel("m", 1),
+        SegmentModel("m", 3),
+        VMCI,
+        SPEED_MODELS[-1],
+        SegmentModel("m", -1),
+    ],
     ids=lambda model: f"{model.name}-{model.degree}-{len(model.bumps)}",
 )
 def test_the_segment_evidence_is_a_multivariate_student_t_density(model):
-    rng = np.random.default_rng(model.degree + 3 * len(model.bumps))
+    rng = np.random.default_rng(model.degree + 1 + 3 * len(model.bumps))
     y = rng.normal(size=10)
     rate, sigma, nu = 10.0, 0.7, 4.0
     evidences = segment_evidences(y, rate, model, SegmentationPrior(noise=sigma, nu=nu))
@@ -43,6 +52,16 @@ def test_the_segment_evidence_is_a_multivariate_student_t_density(model):
         expected = multivariate_t(loc=np.zeros(n), shape=shape, df=nu).logpdf(y[start:end])
         assert evidences[start, end] == pytest.approx(expected, abs=1e-10)
     assert np.isneginf(evidences[5, 5]) and np.isneginf(evidences[7, 3])
+
+
+def test_a_model_with_a_minimum_length_has_no_shorter_segments():
+    y = np.random.default_rng(0).normal(size=(30, 3))
+    model = SegmentModel("still", -1, min_length=0.4)
+    evidences = segment_evidences(y, 20.0, model, SegmentationPrior(noise=1.0))
+    lengths = np.arange(31)[None, :] - np.arange(31)[:, None]
+    assert np.all(np.isneginf(evidences[lengths < 8])) and np.all(np.isfinite(evidences[lengths >= 8]))
+    with pytest.raises(ValueError, match=r"nu must exceed d - 1 = 2 for 3-dimensional data, got 1.5"):
+        segment_evidences(y, 20.0, model, SegmentationPrior(noise=1.0, nu=1.5))
 
 
 def test_polynomial_regressors_are_powers_of_the_time_since_the_segment_began():
@@ -93,6 +112,8 @@ def test_filtering_and_map_equal_brute_force_enumeration(seed):
     computed, computed_marginal, _ = change_probabilities(evidences, log_g, log_survival, model_prior)
     assert computed_marginal == pytest.approx(marginal, abs=1e-9)
     np.testing.assert_allclose(computed[1:-1], probabilities[1:-1], atol=1e-9)
+    online, online_models = pruned_map_segmentation(y, rate, models, prior, model_prior, len(y) + 1, seed=0)
+    assert tuple(online) == points and tuple(online_models) == chosen, "no pruning: the exact MAP"
 
 
 def test_samples_follow_the_posterior():
@@ -134,46 +155,83 @@ def test_a_hold_move_hold_sequence_is_segmented_near_its_corners():
     assert [POLYNOMIAL_MODELS[q].name for q in models][0::2] == ["hold", "hold"]
 
 
-def minimum_jerk_chain(seed: int, rate: float = 60.0) -> tuple[Demonstration, np.ndarray]:
-    """Holds and minimum-jerk reaches of random length and direction, 1 mm noise: a demonstration and the
-    true corner times (including start and end)."""
+def minimum_jerk_chain(
+    seed: int, rate: float = 60.0, noise: float = 0.0002, reaches: int = 4, hold_probability: float = 0.6
+) -> tuple[Demonstration, np.ndarray, list[bool]]:
+    """Minimum-jerk reaches of random length and direction, after a hold or (smooth transition) straight
+    after the previous reach, and a final hold; white noise on the positions (0.2 mm: twice the residual of
+    the shared recordings after smoothing). A demonstration, the true corner times (with start and end) and
+    which pieces are holds."""
     rng = np.random.default_rng(seed)
-    pieces, corners, position = [], [0], np.zeros(3)
-    for _ in range(4):
-        pieces.append(np.repeat(position[None], round(rng.uniform(0.6, 1.2) * rate), axis=0))
-        corners.append(corners[-1] + len(pieces[-1]))
+    pieces, corners, holds, position = [], [0], [], np.zeros(3)
+    for k in range(reaches):
+        if k == 0 or rng.uniform() < hold_probability:
+            pieces.append(np.repeat(position[None], round(rng.uniform(0.6, 1.2) * rate), axis=0))
+            corners.append(corners[-1] + len(pieces[-1]))
+            holds.append(True)
         samples = round(rng.uniform(0.7, 1.3) * rate)
         s = np.arange(samples) / samples
         target = position + rng.normal(0.0, 0.25, 3)
         pieces.append(position + (10 * s**3 - 15 * s**4 + 6 * s**5)[:, None] * (target - position))
         corners.append(corners[-1] + len(pieces[-1]))
+        holds.append(False)
         position = target
     pieces.append(np.repeat(position[None], round(0.8 * rate), axis=0))
     corners.append(corners[-1] + len(pieces[-1]))
+    holds.append(True)
     y = np.concatenate(pieces)
-    y += rng.normal(0.0, 0.001, y.shape)
+    y += rng.normal(0.0, noise, y.shape)
     demo = Demonstration(times=np.arange(len(y)) / rate, frames=np.arange(len(y)), channels={"Hand top": y})
-    return demo, np.array(corners) / rate
+    return demo, np.array(corners) / rate, holds
 
 
-def test_minimum_jerk_chains_with_holds_are_segmented_at_their_corners():
-    """Within +-2 samples of the segmented 20 Hz signal (0.1 s) for 95 % of the corners; the rest within
-    0.25 s (a reach whose speed is far from symmetric can move its corner by a few samples). A hold at zero
-    speed fits a bump of zero height as well as a constant, so only the movements' models are checked."""
+def test_minimum_jerk_chains_with_holds_and_smooth_transitions_are_segmented_at_their_corners():
+    """Every corner is found with the default hyperparameters; 99 % lie within +-2 samples of the segmented
+    20 Hz signal (0.1 s; the issue asks all), the rest within 4 samples: the defaults are set for human
+    recordings, whose velocity deviates from an ideal bump, and leave the slow start of a reach ambiguous by
+    a few samples."""
     errors = []
     for seed in range(12):
-        demo, corners = minimum_jerk_chain(seed)
+        demo, corners, holds = minimum_jerk_chain(seed)
         segmentation = segment(demo)
         assert len(segmentation.times) == len(corners), f"seed {seed}: {segmentation.times} vs {corners}"
         errors += list(np.abs(segmentation.times - np.minimum(corners, demo.times[-1])))
-        assert all(name.startswith("reach") for name in segmentation.models[1::2])
+        assert list(segmentation.holds) == holds
         np.testing.assert_array_equal(segmentation.frames, demo.frames[segmentation.boundaries])
     errors = np.array(errors)
-    assert np.mean(errors <= 0.1 + 1e-9) >= 0.95 and errors.max() < 0.25
+    assert np.mean(errors <= 0.1 + 1e-9) >= 0.98 and errors.max() < 0.2
+
+
+def test_stratified_optimal_resampling_keeps_the_heavy_particles_and_is_unbiased():
+    log_weights = np.log([0.5, 0.2, 0.1, 0.08, 0.06, 0.04, 0.02])
+    totals = np.zeros(7)
+    for seed in range(4000):
+        kept, factors = stratified_optimal_resampling(log_weights, 4, np.random.default_rng(seed))
+        assert len(kept) == 4 and {0, 1} <= set(kept) and np.all(factors[:2] == 0.0)
+        totals[kept] += np.exp(log_weights[kept] + factors)
+    np.testing.assert_allclose(totals / 4000, np.exp(log_weights), atol=0.01)
+    kept, factors = stratified_optimal_resampling(
+        np.r_[np.log([0.6, 0.4]), -np.inf, -np.inf], 3, np.random.default_rng(0)
+    )
+    assert list(kept) == [0, 1] and np.all(factors == 0.0), "weightless particles go first"
+
+
+def test_pruned_inference_follows_the_exact_map_on_a_long_chain():
+    """A 20-reach chain (~40 s, 800 samples at 20 Hz): with 30 candidate change points the online MAP finds
+    the same boundaries as exact inference; the same seed gives the same result."""
+    demo, corners, _ = minimum_jerk_chain(3, reaches=20)
+    exact = segment(demo)
+    pruned = segment(demo, max_particles=30, seed=1)
+    assert len(corners) > 30 and boundary_f1(exact.frames, pruned.frames, 3) >= 0.95
+    np.testing.assert_array_equal(segment(demo, max_particles=30, seed=1).frames, pruned.frames)
+    with pytest.raises(ValueError, match="max_particles must be at least 2, got 1"):
+        segment(demo, max_particles=1)
+    with pytest.raises(ValueError, match=r"posterior change-point probabilities need exact inference"):
+        segment(demo, max_particles=30, posterior=True)
 
 
 def test_segment_gives_change_point_probabilities_and_refuses_short_recordings():
-    demo, corners = minimum_jerk_chain(0)
+    demo, corners, _ = minimum_jerk_chain(0)
     segmentation = segment(demo, posterior=True)
     probability = segmentation.change_probability
     assert probability.shape == (len(segmentation.signal) + 1,) and np.all(
@@ -201,8 +259,9 @@ def test_boundary_f1_matches_one_to_one():
 
 @pytest.mark.slow
 def test_shared_recordings_are_segmented_with_the_default_hyperparameters(shared_recordings):
-    """Mean boundary F1 over the 15 recordings, main segments' start and end frames as the truth. Measured:
-    0.75 at +-0.2 s and 0.60 at +-0.1 s (the issue's targets, 0.85 and 0.70, are not reached yet)."""
+    """Mean boundary F1 over the 15 recordings, main segments' start and end frames as the truth, a hit
+    strictly closer than 12 (6) frames. Measured: 0.857 at +-0.2 s (target 0.85) and 0.672 at +-0.1 s (target
+    0.70, not reached yet); the same with the candidate change points pruned to 50."""
     at_02, at_01 = [], []
     for path in sorted(shared_recordings.glob("*.tsv")):
         demo = load(path)
@@ -211,4 +270,4 @@ def test_shared_recordings_are_segmented_with_the_default_hyperparameters(shared
         at_02.append(boundary_f1(truth, frames, 0.2 * demo.rate))
         at_01.append(boundary_f1(truth, frames, 0.1 * demo.rate))
     assert len(at_02) == 15
-    assert np.mean(at_02) >= 0.74 and np.mean(at_01) >= 0.59
+    assert np.mean(at_02) >= 0.85 and np.mean(at_01) >= 0.66
