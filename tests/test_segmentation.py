@@ -19,6 +19,7 @@ from besman.learning.segmentation import (
     change_probabilities,
     length_prior,
     map_segmentation,
+    movement_onsets,
     pruned_map_segmentation,
     sample_segmentations,
     segment,
@@ -189,11 +190,12 @@ def test_minimum_jerk_chains_with_holds_and_smooth_transitions_are_segmented_at_
     """Every corner is found with the default hyperparameters; 99 % lie within +-2 samples of the segmented
     20 Hz signal (0.1 s; the issue asks all), the rest within 4 samples: the defaults are set for human
     recordings, whose velocity deviates from an ideal bump, and leave the slow start of a reach ambiguous by
-    a few samples."""
+    a few samples. The corners are the generator's change points, so the model's change points are compared
+    (no onset threshold: a minimum-jerk reach reaches 10 % of its peak speed after 9 % of its duration)."""
     errors = []
     for seed in range(12):
         demo, corners, holds = minimum_jerk_chain(seed)
-        segmentation = segment(demo)
+        segmentation = segment(demo, onset_threshold=None)
         assert len(segmentation.times) == len(corners), f"seed {seed}: {segmentation.times} vs {corners}"
         errors += list(np.abs(segmentation.times - np.minimum(corners, demo.times[-1])))
         assert list(segmentation.holds) == holds
@@ -250,6 +252,23 @@ def test_segment_gives_change_point_probabilities_and_refuses_short_recordings()
         segment(short)
 
 
+def test_boundaries_next_to_holds_move_to_the_movements_onset_and_offset():
+    """Hold, bell-shaped movement peaking at 1 m/s, hold, movement: a movement starts at the first sample at
+    10 % of its peak speed and ends at the first below it; a boundary between two movements stays."""
+    s = np.linspace(0, 1, 41)
+    bump = 16 * s**2 * (1 - s) ** 2
+    fast = np.flatnonzero(bump >= 0.1)
+    speed = np.r_[np.zeros(20), bump, np.zeros(20), bump]
+    moved = movement_onsets(np.array([0, 18, 63, 80, 121]), (True, False, True, False), speed, 0.1)
+    np.testing.assert_array_equal(moved, [0, 20 + fast[0], 20 + fast[-1] + 1, 81 + fast[0], 121])
+    two_movements = np.array([0, 41, 81])
+    np.testing.assert_array_equal(
+        movement_onsets(two_movements, (False, False), speed[20:], 0.1), two_movements
+    )
+    with pytest.raises(ValueError, match=r"fraction of the peak speed in \(0, 1\), got 1.5"):
+        movement_onsets(np.array([0, 18, 63]), (True, False), speed, 1.5)
+
+
 def test_boundary_f1_matches_one_to_one():
     assert boundary_f1([10, 20, 30], [10, 20, 30], 1) == 1.0
     assert boundary_f1([10, 20], [11, 12], 3) == pytest.approx(0.5)  # one true point cannot take two hits
@@ -260,8 +279,8 @@ def test_boundary_f1_matches_one_to_one():
 @pytest.mark.slow
 def test_shared_recordings_are_segmented_with_the_default_hyperparameters(shared_recordings):
     """Mean boundary F1 over the 15 recordings, main segments' start and end frames as the truth, a hit
-    strictly closer than 12 (6) frames. Measured: 0.857 at +-0.2 s (target 0.85) and 0.672 at +-0.1 s (target
-    0.70, not reached yet); the same with the candidate change points pruned to 50."""
+    strictly closer than 12 (6) frames. Measured: 0.854 at +-0.2 s (target 0.85) and 0.757 at +-0.1 s (target
+    0.70); without the onset threshold 0.857 and 0.672."""
     at_02, at_01 = [], []
     for path in sorted(shared_recordings.glob("*.tsv")):
         demo = load(path)
@@ -270,4 +289,4 @@ def test_shared_recordings_are_segmented_with_the_default_hyperparameters(shared
         at_02.append(boundary_f1(truth, frames, 0.2 * demo.rate))
         at_01.append(boundary_f1(truth, frames, 0.1 * demo.rate))
     assert len(at_02) == 15
-    assert np.mean(at_02) >= 0.85 and np.mean(at_01) >= 0.66
+    assert np.mean(at_02) >= 0.85 and np.mean(at_01) >= 0.70
