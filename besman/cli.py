@@ -247,6 +247,8 @@ def _few_shot_labels(args: argparse.Namespace, demo, segmentation) -> list[str |
     found = segments_of(demo, segmentation)
     moving = [k for k, hold in enumerate(segmentation.holds) if not hold]
     labels: list[str | None] = [None] * len(found)
+    if not moving:
+        return labels
     for k, label in zip(
         moving, label_few_shot(examples, [found[k] for k in moving], marker=args.marker), strict=True
     ):

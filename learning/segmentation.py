@@ -1,4 +1,4 @@
-"""Bayesian multiple change-point segmentation (Fearnhead and Liu, JRSS B 2007), exact and offline.
+"""Bayesian multiple change-point segmentation (Fearnhead and Liu, JRSS B 2007), exact or pruned.
 
 A recording y (T samples, d dimensions) is cut into segments; each segment follows one of several linear
 regression models q with conjugate priors: coefficients beta | Sigma ~ MN(0, D, Sigma), noise Sigma ~ IW(nu,
@@ -52,7 +52,7 @@ class SegmentModel:
         bumps: bump terms s^a (1 - s)^b, each peaking at 1, in the normalised time s = (i + 1/2) / n of a
             segment of n samples; they stretch with the segment (a bell-shaped velocity or speed profile).
         bump_scale: prior standard deviation of a bump's height (units of y).
-        min_length: shortest segment of this model (s), beyond the prior's ``min_length``.
+        min_length: shortest segment of this model (s); the prior's ``min_length`` applies too.
         weight: prior weight of the model (the prior probabilities of a set of models are their normalised
             weights).
         hold: whether a segment of this model is a pause rather than a movement (holds get no label).
@@ -103,11 +103,13 @@ POLYNOMIAL_MODELS = (
 # The vMCI velocity model: one bell-shaped speed bump on a constant.
 VMCI = SegmentModel("vmci", degree=0, bumps=((2.0, 2.0),))
 # Single movements whose speed (or velocity along a straight path) rises from and falls back to zero: peaking
-# in the middle, early or late; the last one's width adapts (two symmetric bumps of different sharpness).
+# in the middle (a minimum-jerk reach, Flash and Hogan 1985), a little early or late (at 44 or 56 % of the
+# movement: a stronger skew lets a reach start or end several samples into a hold); the last one's width
+# adapts (two symmetric bumps of different sharpness).
 REACHES = (
     SegmentModel("reach", degree=-1, bumps=((2.0, 2.0),)),
-    SegmentModel("reach early peak", degree=-1, bumps=((2.0, 3.0),)),
-    SegmentModel("reach late peak", degree=-1, bumps=((3.0, 2.0),)),
+    SegmentModel("reach early peak", degree=-1, bumps=((2.0, 2.5),)),
+    SegmentModel("reach late peak", degree=-1, bumps=((2.5, 2.0),)),
     SegmentModel("reach variable width", degree=-1, bumps=((2.0, 2.0), (3.0, 3.0))),
 )
 # Models of a speed signal: a hold (constant speed) and reaches.
@@ -329,18 +331,21 @@ def stratified_optimal_resampling(
     positive = np.flatnonzero(weights > 0)
     if len(positive) <= keep:
         return positive, np.zeros(len(positive))
-    descending = np.sort(weights)[::-1]
+    # Split by rank (not by comparing values with alpha, which rounding can contradict): the `certain`
+    # largest survive; alpha is then the mass of the rest over the strata left, larger than any of them.
+    order = np.argsort(-weights, kind="stable")
+    descending = weights[order]
     tails = np.cumsum(descending[::-1])[::-1]  # tails[a] = sum of all but the a largest
-    for certain in range(keep):
-        alpha = tails[certain] / (keep - certain)
-        if descending[certain] < alpha:
-            break
-    small = np.flatnonzero(weights < alpha)
-    points = rng.uniform(0.0, alpha) + alpha * np.arange(keep - certain)
+    # Falls through only when the rest rounds to nothing next to the keep-th largest.
+    certain = next((a for a in range(keep) if descending[a] < tails[a] / (keep - a)), keep - 1)
+    large, small = order[:certain], np.sort(order[certain:])
+    strata = keep - certain
     cumulative = np.cumsum(weights[small])
-    drawn = small[np.minimum(np.searchsorted(cumulative, points), len(small) - 1)]
-    kept = np.union1d(np.flatnonzero(weights >= alpha), drawn)
-    factors = np.where(weights[kept] >= alpha, 0.0, math.log(alpha) - np.log(weights[kept]))
+    alpha = cumulative[-1] / strata
+    points = (rng.uniform() + np.arange(strata)) * alpha
+    drawn = small[np.minimum(np.searchsorted(cumulative, points, side="right"), len(small) - 1)]
+    kept = np.union1d(large, drawn)
+    factors = np.where(np.isin(kept, large), 0.0, math.log(alpha) - np.log(weights[kept]))
     return kept, factors
 
 
@@ -364,7 +369,7 @@ def pruned_map_segmentation(
     kernels = [_EvidenceKernel.of(y, rate, model, prior) for model in models]
     cumulative = _second_moments(y)
     log_g, log_survival = length_prior(n_samples, rate, prior)
-    # log P(a segment lasts at least n samples): 0 below the minimum length.
+    # log P(a segment lasts at least n samples): 0 up to the minimum length.
     log_ongoing = np.where(np.isfinite(log_survival), log_survival, 0.0)
     forward, best = np.full(n_samples + 1, -np.inf), np.full(n_samples + 1, -np.inf)
     forward[0] = best[0] = 0.0
@@ -384,7 +389,8 @@ def pruned_map_segmentation(
             break
         combined = logsumexp(stacked, axis=0)
         forward[t] = logsumexp(forward[particles] + combined + log_g[lengths])
-        weights = np.r_[forward[particles] + combined + log_ongoing[lengths], forward[t]]
+        # P(C_t+1 = j): the segment from j goes on past t (it ending at t is the new particle's weight).
+        weights = np.r_[forward[particles] + combined + log_ongoing[lengths + 1], forward[t]]
         particles = np.r_[particles, t]
         if len(particles) > max_particles:
             kept, factors = stratified_optimal_resampling(weights, max_particles, rng)
@@ -562,7 +568,7 @@ def movement_onsets(
         if hold:
             continue
         start, end = boundaries[k], boundaries[k + 1]
-        peak = start + int(np.argmax(speed[start : end + 1]))
+        peak = start + int(np.argmax(speed[start:end]))
         slow = speed < fraction * speed[peak]
         if k > 0 and holds[k - 1]:
             before = np.flatnonzero(slow[boundaries[k - 1] + 1 : peak])

@@ -9,12 +9,12 @@ from PIL import Image
 from besman.cli import main
 
 
-def recording(tmp_path, seed=0, rate=60.0, gap=None, name="reach"):
+def recording(tmp_path, seed=0, rate=60.0, gap=None, name="reach", reach=(0.3, -0.2, 0.1)):
     """A Qualisys-style TSV of one hand marker: hold, minimum-jerk reach, hold; frames start at 500."""
     rng = np.random.default_rng(seed)
     s = np.arange(60) / 60
     path = np.r_[np.zeros(60), 10 * s**3 - 15 * s**4 + 6 * s**5, np.ones(60)]
-    positions = 1000 * (np.outer(path, [0.3, -0.2, 0.1]) + rng.normal(0, 0.001, (len(path), 3)))
+    positions = 1000 * (np.outer(path, reach) + rng.normal(0, 0.001, (len(path), 3)))
     header = [
         "NO_OF_FRAMES\t180",
         f"FREQUENCY\t{rate:g}",
@@ -83,3 +83,6 @@ def test_segment_labels_the_movements_like_the_nearest_annotated_example(capsys,
     assert code == 0 and out.splitlines()[1].endswith("reach")
     code, _, err = run(capsys, "segment", str(file), "--examples", str(file))
     assert code != 0 and f"{file}: no annotated segments" in err
+    still = recording(tmp_path, seed=3, name="still", reach=(0.0, 0.0, 0.0))
+    code, out, _ = run(capsys, "segment", str(still), "--json", "--examples", str(example))
+    assert code == 0 and {s["label"] for s in json.loads(out)["segments"]} == {None}

@@ -187,10 +187,8 @@ def minimum_jerk_chain(
 
 
 def test_minimum_jerk_chains_with_holds_and_smooth_transitions_are_segmented_at_their_corners():
-    """Every corner is found with the default hyperparameters; 99 % lie within +-2 samples of the segmented
-    20 Hz signal (0.1 s; the issue asks all), the rest within 4 samples: the defaults are set for human
-    recordings, whose velocity deviates from an ideal bump, and leave the slow start of a reach ambiguous by
-    a few samples. The corners are the generator's change points, so the model's change points are compared
+    """Every corner is found with the default hyperparameters, within +-2 samples of the segmented 20 Hz
+    signal (0.1 s). The corners are the generator's change points, so the model's change points are compared
     (no onset threshold: a minimum-jerk reach reaches 10 % of its peak speed after 9 % of its duration)."""
     errors = []
     for seed in range(12):
@@ -201,7 +199,7 @@ def test_minimum_jerk_chains_with_holds_and_smooth_transitions_are_segmented_at_
         assert list(segmentation.holds) == holds
         np.testing.assert_array_equal(segmentation.frames, demo.frames[segmentation.boundaries])
     errors = np.array(errors)
-    assert np.mean(errors <= 0.1 + 1e-9) >= 0.98 and errors.max() < 0.2
+    assert errors.max() <= 0.1 + 1e-9
 
 
 def test_stratified_optimal_resampling_keeps_the_heavy_particles_and_is_unbiased():
@@ -216,6 +214,15 @@ def test_stratified_optimal_resampling_keeps_the_heavy_particles_and_is_unbiased
         np.r_[np.log([0.6, 0.4]), -np.inf, -np.inf], 3, np.random.default_rng(0)
     )
     assert list(kept) == [0, 1] and np.all(factors == 0.0), "weightless particles go first"
+    kept, factors = stratified_optimal_resampling(np.log([0.5, 0.5, 1e-22]), 2, np.random.default_rng(0))
+    assert list(kept) == [0, 1] and np.all(factors == 0.0), "a tail that rounds away is dropped"
+    tied = np.log([0.4, 0.2, 0.15, 0.1, 0.08, 0.05, 0.02])  # the second weight equals alpha
+    totals = np.zeros(7)
+    for seed in range(4000):
+        kept, factors = stratified_optimal_resampling(tied, 4, np.random.default_rng(seed))
+        assert len(kept) == 4
+        totals[kept] += np.exp(tied[kept] + factors)
+    np.testing.assert_allclose(totals / 4000, np.exp(tied), atol=0.01)
 
 
 def test_pruned_inference_follows_the_exact_map_on_a_long_chain():
@@ -261,6 +268,9 @@ def test_boundaries_next_to_holds_move_to_the_movements_onset_and_offset():
     speed = np.r_[np.zeros(20), bump, np.zeros(20), bump]
     moved = movement_onsets(np.array([0, 18, 63, 80, 121]), (True, False, True, False), speed, 0.1)
     np.testing.assert_array_equal(moved, [0, 20 + fast[0], 20 + fast[-1] + 1, 81 + fast[0], 121])
+    rising = np.r_[np.zeros(10), 0.002, 0.003, 0.002, 0.001, 0.0005, 0.02, 0.5, 1.0, 0.5, 0.1, 0.0]
+    moved = movement_onsets(np.array([0, 10, 15, 20]), (True, False, False), rising, 0.1)
+    assert np.all(np.diff(moved) > 0), "a movement keeps at least one sample"
     two_movements = np.array([0, 41, 81])
     np.testing.assert_array_equal(
         movement_onsets(two_movements, (False, False), speed[20:], 0.1), two_movements
@@ -279,8 +289,8 @@ def test_boundary_f1_matches_one_to_one():
 @pytest.mark.slow
 def test_shared_recordings_are_segmented_with_the_default_hyperparameters(shared_recordings):
     """Mean boundary F1 over the 15 recordings, main segments' start and end frames as the truth, a hit
-    strictly closer than 12 (6) frames. Measured: 0.854 at +-0.2 s (target 0.85) and 0.757 at +-0.1 s (target
-    0.70); without the onset threshold 0.857 and 0.672."""
+    strictly closer than 12 (6) frames. Measured: 0.857 at +-0.2 s (target 0.85) and 0.760 at +-0.1 s (target
+    0.70); without the onset threshold 0.855 and 0.659."""
     at_02, at_01 = [], []
     for path in sorted(shared_recordings.glob("*.tsv")):
         demo = load(path)
