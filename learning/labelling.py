@@ -85,8 +85,7 @@ def descriptors(
         path = smoothed[key][segment.start : segment.end + 1]
         times = segment.demo.times[segment.start : segment.end + 1]
         _, shape = resample((times - times[0]) / (times[-1] - times[0]), path, points - 1.0)
-        demo_times = segment.demo.times
-        phase = ((times[0] + times[-1]) / 2 - demo_times[0]) / (demo_times[-1] - demo_times[0])
+        phase = ((times[0] + times[-1]) / 2 - segment.demo.times[0]) / segment.demo.duration
         rows.append(np.concatenate([(shape[:points] - path[0]).ravel(), path[0], path[-1], [phase]]))
     return np.array(rows)
 

@@ -140,6 +140,11 @@ class SegmentationPrior:
     min_length: float = 0.15  # s, shortest segment
 
 
+def samples(duration: float, rate: float) -> int:
+    """The number of samples (at least one) of a duration (s) at ``rate`` (Hz)."""
+    return max(1, round(duration * rate))
+
+
 def noise_scale(y: np.ndarray) -> float:
     """White-noise standard deviation estimated from first differences (median absolute deviation)."""
     differences = np.diff(y, axis=0)
@@ -198,17 +203,15 @@ class _EvidenceKernel:
             - ((lengths + nu) / 2.0) * log_det
         )
 
-    def segments(self, y: np.ndarray, cumulative: np.ndarray, starts: np.ndarray, end: int) -> np.ndarray:
-        """log P(y[j:end]) for every j in ``starts`` (-inf below the model's minimum length); ``cumulative``
-        from ``_second_moments(y)``."""
-        lengths = end - starts
+    def segments(self, windows: np.ndarray, lengths: np.ndarray, second: np.ndarray) -> np.ndarray:
+        """log P(y_k) for k segments given as ``windows`` (k, max(lengths), d) that start with each segment
+        (samples beyond its length are ignored), their ``lengths`` and Y^T Y ``second`` (k, d, d); -inf below
+        the model's minimum length."""
         basis = self.model.padded_basis(lengths, self.rate)  # zero beyond each segment's end
-        index = np.minimum(starts[:, None] + np.arange(basis.shape[1])[None, :], len(y) - 1)
-        windows = y[index]
         gram = np.einsum("kim,kin->kmn", basis, basis)
         cross = np.einsum("kim,kid->kmd", basis, windows)
-        values = self(lengths, gram, cross, cumulative[end] - cumulative[starts])
-        return np.where(lengths >= max(1, round(self.model.min_length * self.rate)), values, -np.inf)
+        values = self(lengths, gram, cross, second)
+        return np.where(lengths >= samples(self.model.min_length, self.rate), values, -np.inf)
 
 
 def _as_columns(y: np.ndarray) -> np.ndarray:
@@ -236,7 +239,7 @@ def segment_evidences(
     kernel = _EvidenceKernel.of(y, rate, model, prior)
     cumulative = _second_moments(y)
     evidences = np.full((n_samples + 1, n_samples + 1), -np.inf)
-    for n in range(max(1, round(model.min_length * rate)), n_samples + 1):
+    for n in range(samples(model.min_length, rate), n_samples + 1):
         basis = model.basis(n, rate)
         windows = np.lib.stride_tricks.sliding_window_view(y, n, axis=0)  # (T - n + 1, d, n)
         cross = np.swapaxes(windows @ basis, 1, 2)  # H^T Y of every segment of length n
@@ -250,7 +253,7 @@ def segment_evidences(
 def length_prior(n_samples: int, rate: float, prior: SegmentationPrior) -> tuple[np.ndarray, np.ndarray]:
     """log g(n) and log(1 - G(n - 1)) (the survival, for the last segment) for n = 0..T."""
     n = np.arange(n_samples + 1)
-    minimum = max(1, round(prior.min_length * rate))
+    minimum = samples(prior.min_length, rate)
     hazard = min(1.0, 1.0 / max(prior.expected_length * rate, 1.0))
     extra = n - minimum
     log_g = np.where(
@@ -379,7 +382,10 @@ def pruned_map_segmentation(
     rng = np.random.default_rng(seed)
     for t in range(1, n_samples + 1):
         lengths = t - particles
-        stacked = np.stack([kernel.segments(y, cumulative, particles, t) for kernel in kernels])
+        # The segments [j, t) of every candidate j, gathered once for all models.
+        windows = y[np.minimum(particles[:, None] + np.arange(lengths.max())[None, :], n_samples - 1)]
+        second = cumulative[t] - cumulative[particles]
+        stacked = np.stack([kernel.segments(windows, lengths, second) for kernel in kernels])
         stacked += model_prior[:, None]
         lengths_prior = log_survival[lengths] if t == n_samples else log_g[lengths]
         scores = best[particles][None, :] + stacked + lengths_prior[None, :]  # (q, particle)
@@ -514,7 +520,7 @@ def segment(
     signal_times, values = resample(
         demo.times, smoothed.velocities if signal == "velocity" else smoothed.speed, rate
     )
-    minimum = max(1, round(prior.min_length * rate))
+    minimum = samples(prior.min_length, rate)
     if len(values) < 2 * minimum:
         raise DemonstrationError(
             f"{demo.source or 'demonstration'}: the recording lasts {demo.duration:.2f} s, shorter than two "
