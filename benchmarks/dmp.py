@@ -24,6 +24,7 @@ from rich.table import Table
 
 from besman.skills import DMP, CartesianDMP
 from besman.skills import quaternion as quat
+from besman.skills.transformation import minimum_jerk
 
 TARGETS = {"a": 50.0, "b": 5.0, "c": 1.0, "d": 5.0}
 
@@ -44,9 +45,9 @@ def median_seconds(function, repeats: int) -> tuple[float, float]:
 def demonstration(steps: int, dims: int = 7) -> tuple[np.ndarray, np.ndarray]:
     times = np.linspace(0.0, (steps - 1) * 0.001, steps)
     s = times / times[-1]
-    minimum_jerk = 10 * s**3 - 15 * s**4 + 6 * s**5
+    profile = minimum_jerk(s)
     positions = np.column_stack(
-        [0.3 * (d + 1) * minimum_jerk + 0.1 * np.sin(np.pi * s * (d % 3 + 1)) ** 2 for d in range(dims)]
+        [0.3 * (d + 1) * profile + 0.1 * np.sin(np.pi * s * (d % 3 + 1)) ** 2 for d in range(dims)]
     )
     return times, positions
 

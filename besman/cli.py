@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from besman._version import __version__
+from besman.skills.errors import InputError
 
 
 def _robot_table(name: str) -> dict:
@@ -112,7 +113,7 @@ def _tree_render(args: argparse.Namespace) -> int:
     out = Path(args.out)
     formats = {".svg": "svg", ".png": "png", ".dot": "raw"}
     if out.suffix.lower() not in formats:
-        raise ValueError(f"{out}: the output file must end in .svg, .png or .dot")
+        raise InputError(f"{out}: the output file must end in .svg, .png or .dot")
     graph = py_trees.display.dot_tree(load_tree(args.file))
     try:
         data = graph.create(format=formats[out.suffix.lower()])
@@ -129,11 +130,11 @@ def _parse_sets(pairs: Sequence[str]) -> dict[str, tuple[float, ...]]:
     for pair in pairs:
         name, equals, text = pair.partition("=")
         if not equals or not name:
-            raise ValueError(f"--set {pair!r}: expected name=value[,value...]")
+            raise InputError(f"--set {pair!r}: expected name=value[,value...]")
         try:
             values[name] = tuple(float(v) for v in text.split(","))
         except ValueError:
-            raise ValueError(f"--set {pair!r}: the values must be numbers separated by commas") from None
+            raise InputError(f"--set {pair!r}: the values must be numbers separated by commas") from None
     return values
 
 
@@ -150,7 +151,7 @@ def _print_summary(summary: dict, as_json: bool) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from besman.trees.runner import run_on_tabletop
+    from besman.trees.tabletop import run_on_tabletop
 
     summary = run_on_tabletop(args.file, _parse_sets(args.set), seed=args.seed, log=args.log)
     _print_summary(summary, args.json)
@@ -159,7 +160,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _demo(args: argparse.Namespace) -> int:
     from besman.trees import grasp_then_place
-    from besman.trees.runner import run_on_tabletop
+    from besman.trees.tabletop import run_on_tabletop
 
     print("AILA grasps the box on the table and places it on the shelf (grasp-then-place tree)")
     summary = run_on_tabletop(
@@ -180,7 +181,7 @@ def _tasks_show(args: argparse.Namespace) -> int:
 
         bounds = PAPER_BOUNDS if args.name == "throwing" else HARDWARE_BOUNDS
     else:
-        raise ValueError(f"unknown task {args.name!r}; tasks: {', '.join(TASKS)}")
+        raise InputError(f"unknown task {args.name!r}; tasks: {', '.join(TASKS)}")
     if args.json:
         print(json.dumps({"task": args.name, "bounds": bounds.as_dict()}, indent=2))
     else:

@@ -20,6 +20,7 @@ from rich.console import Console
 
 import besman.robots as robots
 from besman.robots.render import render, save_png
+from besman.skills import quaternion
 
 console = Console()
 
@@ -61,7 +62,7 @@ def pa10_throws(pa10: robots.Robot) -> None:
     mujoco.mj_forward(model, data)
     holder = data.site("ball_holder")
     data.qpos[7:10] = holder.xpos  # the ball follows the hand to the new start pose
-    mujoco.mju_mat2Quat(data.qpos[10:14], holder.xmat)
+    data.qpos[10:14] = quaternion.from_matrix(holder.xmat.reshape(3, 3))
     data.ctrl[arm.actuator_indices] = swing_to
     released_at = None
     while data.time < 5.0:

@@ -1,6 +1,6 @@
-"""Learning: demonstrations, preprocessing, segmentation, labelling, imitation, policy search, templates.
+"""Learning from demonstrations: recordings, smoothing, segmentation, labelling, imitation.
 
-So far: :mod:`besman.learning.demonstration` (recordings and their loaders),
+:mod:`besman.learning.demonstration` (recordings and their loaders),
 :mod:`besman.learning.preprocessing` (Kalman/RTS smoothing, gaps, resampling, hand poses) and
 :mod:`besman.learning.segmentation` (exact Bayesian change-point inference: evidences, MAP, change-point
 probabilities, posterior samples; ``segment(demo)``), :mod:`besman.learning.segmentation_plot`,

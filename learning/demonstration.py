@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from besman.skills.errors import BesmanError
 from besman.skills.storage import npz_bytes, read_npz, write_atomically
 
 SCHEMA_VERSION = 1
@@ -46,7 +47,7 @@ PICK_AND_PLACE_MAIN_SEGMENTS = (
 )
 
 
-class DemonstrationError(ValueError):
+class DemonstrationError(BesmanError):
     """A demonstration file cannot be used; the message names the file and the problem."""
 
 

@@ -17,6 +17,8 @@ from besman.learning.demonstration import Demonstration
 from besman.learning.labelling import DemonstrationSegment
 from besman.learning.preprocessing import hand_pose, smooth
 from besman.skills.cartesian_dmp import CartesianDMP
+from besman.skills.dmp_core import DMPSettings
+from besman.skills.errors import InputError
 from besman.skills.primitive import MovementPrimitive
 
 HAND_MARKERS = ("Hand top", "Hand left", "Hand right")
@@ -41,7 +43,7 @@ def imitate(
 ) -> MovementPrimitive:
     """A Cartesian-DMP primitive ``name`` imitating all ``segments`` (instances of one building block)."""
     if not segments:
-        raise ValueError(f"building block {name!r} has no segments to imitate")
+        raise InputError(f"building block {name!r} has no segments to imitate")
     poses: dict[int, tuple[np.ndarray, np.ndarray, str]] = {}
     times, positions, orientations, instances = [], [], [], []
     for segment in segments:
@@ -61,7 +63,9 @@ def imitate(
                 "label": segment.label,
             }
         )
-    dmp = CartesianDMP(n_weights=n_weights, dt=dt).imitate(times, positions, orientations)
+    dmp = CartesianDMP(settings=DMPSettings(n_weights=n_weights), dt=dt).imitate(
+        times, positions, orientations
+    )
     units = {segment.demo.units for segment in segments}
     provenance = {
         "learner": "besman.learning.imitation.imitate",

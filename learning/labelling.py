@@ -28,6 +28,7 @@ from sklearn.preprocessing import StandardScaler
 from besman.learning.demonstration import Demonstration, DemonstrationError
 from besman.learning.preprocessing import resample, smooth
 from besman.learning.segmentation import Segmentation
+from besman.skills.errors import InputError
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,7 +103,7 @@ def cluster(
 ) -> np.ndarray:
     """Unsupervised grouping into ``n_blocks`` building blocks: a cluster index per segment."""
     if len(segments) < n_blocks:
-        raise ValueError(f"{len(segments)} segments cannot form {n_blocks} building blocks")
+        raise InputError(f"{len(segments)} segments cannot form {n_blocks} building blocks")
     raw = descriptors(segments, marker=marker)
     features = _features(raw, StandardScaler().fit(raw))
     return AgglomerativeClustering(n_clusters=n_blocks, linkage="ward").fit_predict(features)
@@ -117,7 +118,7 @@ def label_few_shot(
     """Labels ``segments`` like their nearest labelled example (1-NN in descriptor space)."""
     missing = [k for k, segment in enumerate(labelled) if segment.label is None]
     if missing:
-        raise ValueError(f"the labelled examples {missing} have no label")
+        raise InputError(f"the labelled examples {missing} have no label")
     examples = descriptors(labelled, marker=marker)
     raw = descriptors(segments, marker=marker)
     scaler = StandardScaler().fit(np.vstack([examples, raw]))

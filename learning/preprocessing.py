@@ -11,13 +11,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 
 from besman.learning.demonstration import Demonstration, DemonstrationError
-from besman.skills.quaternion import make_continuous
+from besman.skills.errors import InputError
+from besman.skills.quaternion import from_matrix, make_continuous
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ def smooth(demo: Demonstration, marker: str, config: SmoothingConfig = Smoothing
 def resample(times: np.ndarray, values: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
     """Values (T, ...) linearly interpolated at ``rate`` Hz over the same time span."""
     if not rate > 0:
-        raise ValueError(f"rate must be positive, got {rate!r}")
+        raise InputError(f"rate must be positive, got {rate!r}")
     new_times = np.arange(times[0], times[-1] + 1e-9, 1.0 / rate)
     flat = values.reshape(len(times), -1)
     resampled = np.column_stack([np.interp(new_times, times, flat[:, i]) for i in range(flat.shape[1])])
@@ -105,7 +105,5 @@ def hand_pose(
     y /= np.linalg.norm(y, axis=1, keepdims=True)
     z /= np.linalg.norm(z, axis=1, keepdims=True)
     x = np.cross(y, z)
-    quaternions = np.empty((len(y), 4))
-    for i, matrix in enumerate(np.stack([x, y, z], axis=2)):
-        mujoco.mju_mat2Quat(quaternions[i], matrix.ravel())
+    quaternions = from_matrix(np.stack([x, y, z], axis=2))
     return (top_ + left_ + right_) / 3.0, make_continuous(quaternions)

@@ -27,6 +27,10 @@ stratified optimal resampling. Hyperparameters default to data-driven values: th
 first differences of the data. Finally, where a movement meets a hold, the boundary moves to the movement's
 onset or offset at 10 % of its peak speed, the convention of human reaching studies (and of people who
 annotate recordings).
+
+The module is longer than most (~600 lines) because the evidences, the filtering recursions, the pruned
+online MAP and the sampling share one state layout and one set of per-length terms; its tests check them
+against one another and against brute-force enumeration, which is easier to keep true in one file.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from scipy.special import gammaln, logsumexp
 
 from besman.learning.demonstration import Demonstration, DemonstrationError
 from besman.learning.preprocessing import SmoothingConfig, resample, smooth
+from besman.skills.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -168,7 +173,7 @@ class _EvidenceKernel:
     def of(cls, y: np.ndarray, rate: float, model: SegmentModel, prior: SegmentationPrior) -> _EvidenceKernel:
         d = y.shape[1]
         if not prior.nu > d - 1:
-            raise ValueError(
+            raise InputError(
                 f"SegmentationPrior.nu must exceed d - 1 = {d - 1} for {d}-dimensional data, got {prior.nu!r}"
             )
         sigma = prior.noise if prior.noise is not None else prior.noise_factor * noise_scale(y)
@@ -366,7 +371,7 @@ def pruned_map_segmentation(
     resampling, and the online Viterbi recursion runs over the survivors. Costs O(T max_particles L) for
     segments of up to L samples instead of O(T^2) time and memory; with ``max_particles`` >= T it is exact."""
     if max_particles < 2:
-        raise ValueError(f"max_particles must be at least 2, got {max_particles!r}")
+        raise InputError(f"max_particles must be at least 2, got {max_particles!r}")
     y = _as_columns(y)
     n_samples = len(y)
     kernels = [_EvidenceKernel.of(y, rate, model, prior) for model in models]
@@ -511,9 +516,9 @@ def segment(
     ``max_particles`` bounds the candidate change points (``pruned_map_segmentation``; randomised: ``seed``).
     """
     if signal not in SIGNALS:
-        raise ValueError(f"signal must be one of {SIGNALS}, got {signal!r}")
+        raise InputError(f"signal must be one of {SIGNALS}, got {signal!r}")
     if posterior and max_particles is not None:
-        raise ValueError("posterior change-point probabilities need exact inference (max_particles=None)")
+        raise InputError("posterior change-point probabilities need exact inference (max_particles=None)")
     if models is None:
         models = VELOCITY_MODELS if signal == "velocity" else SPEED_MODELS
     smoothed = smooth(demo, marker, smoothing or SmoothingConfig())
@@ -566,7 +571,7 @@ def movement_onsets(
     see a movement begin there, not where it becomes statistically distinguishable from a hold).
     ``boundaries`` are sample indices of ``speed``; a hold keeps at least one sample."""
     if not 0.0 < fraction < 1.0:
-        raise ValueError(
+        raise InputError(
             f"the onset threshold must be a fraction of the peak speed in (0, 1), got {fraction!r}"
         )
     moved = np.array(boundaries)

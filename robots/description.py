@@ -20,16 +20,18 @@ second (rad/s or m/s, and so on); the README of each robot says where every numb
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from besman.skills.errors import BesmanError
+from besman.skills.storage import check_schema_version, read_json, require_field
+
 SCHEMA_VERSION = 1
 
 
-class DescriptionError(ValueError):
+class DescriptionError(BesmanError):
     """A robot description file is malformed; the message names the file and the field."""
 
 
@@ -64,14 +66,8 @@ class RobotDescription:
     limits: dict[str, JointLimitSpec]
 
 
-def _require(mapping: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
-    if key not in mapping:
-        raise DescriptionError(f"{where}: missing field {key!r}")
-    value = mapping[key]
-    if not isinstance(value, kind) or isinstance(value, bool):
-        expected = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
-        raise DescriptionError(f"{where}.{key}: expected {expected}, got {value!r}")
-    return value
+def _field(mapping: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    return require_field(mapping, key, kind, where, DescriptionError)
 
 
 def _string_list(value: Any, where: str) -> tuple[str, ...]:
@@ -85,23 +81,12 @@ def _string_list(value: Any, where: str) -> tuple[str, ...]:
 def read_description(path: Path) -> RobotDescription:
     """Reads and validates a ``description.json``; errors name the file and the offending field."""
     path = Path(path)
-    try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise DescriptionError(f"{path}: no such file") from None
-    except json.JSONDecodeError as error:
-        raise DescriptionError(f"{path}: not valid JSON ({error})") from None
-    if not isinstance(raw, dict):
-        raise DescriptionError(f"{path}: expected a JSON object at the top level")
+    raw = read_json(path, DescriptionError)
     where = str(path)
-    version = _require(raw, "schema_version", int, where)
-    if version != SCHEMA_VERSION:
-        raise DescriptionError(
-            f"{where}.schema_version: {version} is not supported (expected {SCHEMA_VERSION})"
-        )
+    check_schema_version(raw, SCHEMA_VERSION, where, DescriptionError)
 
     groups: dict[str, GroupSpec] = {}
-    for group_name, group in _require(raw, "groups", dict, where).items():
+    for group_name, group in _field(raw, "groups", dict, where).items():
         group_where = f"{where}.groups.{group_name}"
         if not isinstance(group, dict):
             raise DescriptionError(f"{group_where}: expected an object, got {group!r}")
@@ -116,13 +101,13 @@ def read_description(path: Path) -> RobotDescription:
         )
 
     limits: dict[str, JointLimitSpec] = {}
-    for joint, spec in _require(raw, "limits", dict, where).items():
+    for joint, spec in _field(raw, "limits", dict, where).items():
         joint_where = f"{where}.limits.{joint}"
         if not isinstance(spec, dict):
             raise DescriptionError(f"{joint_where}: expected an object, got {spec!r}")
         values = {}
         for key in ("velocity", "acceleration", "jerk"):
-            value = _require(spec, key, (int, float), joint_where)
+            value = _field(spec, key, (int, float), joint_where)
             if not math.isfinite(value) or value <= 0:
                 raise DescriptionError(
                     f"{joint_where}.{key}: must be a finite positive number, got {value!r}"
@@ -131,10 +116,10 @@ def read_description(path: Path) -> RobotDescription:
         limits[joint] = JointLimitSpec(**values)
 
     return RobotDescription(
-        name=_require(raw, "name", str, where),
+        name=_field(raw, "name", str, where),
         title=raw.get("title", ""),
-        model_file=path.parent / _require(raw, "model", str, where),
-        keyframe=_require(raw, "keyframe", str, where),
+        model_file=path.parent / _field(raw, "model", str, where),
+        keyframe=_field(raw, "keyframe", str, where),
         groups=groups,
         limits=limits,
     )

@@ -6,14 +6,16 @@ is first imported. The ``besman`` command line does that for you.
 
 from __future__ import annotations
 
+import io
 import os
-import tempfile
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from besman.robots.robot import Robot
+from besman.skills.errors import InputError
+from besman.skills.storage import write_atomically
 
 
 def render(
@@ -33,7 +35,7 @@ def render(
     """
     model = robot.model
     if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
-        raise ValueError(
+        raise InputError(
             f"image {width}x{height} exceeds the scene's offscreen buffer "
             f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}"
         )
@@ -62,7 +64,7 @@ def png_path(path: str | Path) -> Path:
     """``path`` as a Path, if it names a PNG file; a ValueError otherwise."""
     path = Path(path)
     if path.suffix.lower() != ".png":
-        raise ValueError(f"{path}: the output file must end in .png")
+        raise InputError(f"{path}: the output file must end in .png")
     return path
 
 
@@ -70,14 +72,6 @@ def save_png(image: np.ndarray, path: str | Path) -> Path:
     """Writes an RGB image as PNG atomically (temporary file, then rename)."""
     from PIL import Image
 
-    path = png_path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
-    try:
-        with os.fdopen(descriptor, "wb") as file:
-            Image.fromarray(image).save(file, format="PNG")
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-    return path
+    buffer = io.BytesIO()
+    Image.fromarray(image).save(buffer, format="PNG")
+    return write_atomically(png_path(path), buffer.getvalue())

@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 
 from besman.robots.description import DescriptionError, RobotDescription, read_description
+from besman.skills.errors import InputError
 
 ROBOTS_DIR = Path(__file__).resolve().parent
 DESCRIPTION_FILE = "description.json"
@@ -101,7 +102,7 @@ class Robot:
         key = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, name)
         if key < 0:
             names = [self.model.key(k).name for k in range(self.model.nkey)]
-            raise ValueError(f"robot {self.name!r} has no keyframe {name!r}; keyframes: {', '.join(names)}")
+            raise InputError(f"robot {self.name!r} has no keyframe {name!r}; keyframes: {', '.join(names)}")
         mujoco.mj_resetDataKeyframe(self.model, data, key)
         mujoco.mj_forward(self.model, data)
 
@@ -181,13 +182,13 @@ def load(name: str) -> Robot:
     folder = Path(name)
     if not (folder / DESCRIPTION_FILE).is_file():
         if name not in available():
-            raise ValueError(f"unknown robot {name!r}; available: {', '.join(available())}")
+            raise InputError(f"unknown robot {name!r}; available: {', '.join(available())}")
         folder = ROBOTS_DIR / name
     description = read_description(folder / DESCRIPTION_FILE)
     try:
         model = mujoco.MjModel.from_xml_path(str(description.model_file))
     except ValueError as error:
-        raise ValueError(f"{description.model_file}: the model does not compile: {error}") from None
+        raise InputError(f"{description.model_file}: the model does not compile: {error}") from None
     if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, description.keyframe) < 0:
         raise DescriptionError(f"{description.model_file}: no keyframe {description.keyframe!r}")
     return Robot(description, model)

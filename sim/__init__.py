@@ -1,21 +1,28 @@
 """Simulation: worlds, tasks, batched rollouts and Ruckig-smoothed execution.
 
 - :mod:`besman.sim.world` - robots composed with furniture and objects (MjSpec).
-- :mod:`besman.sim.executor` - every commanded motion through Ruckig, grasps, faults.
+- :mod:`besman.sim.arm` - the driven joints' limits and kinematic queries (FK, IK, collisions), shared by
+  planning and execution.
+- :mod:`besman.sim.executor` - runs :mod:`motions <besman.sim.motions>` cycle by cycle through Ruckig
+  (:mod:`besman.sim.streaming`), with grasp sensing (:mod:`besman.sim.hand`) and fault checks
+  (:mod:`besman.sim.faults`); :mod:`besman.sim.references` turns primitives into joint references.
 - :mod:`besman.sim.primitives`, :mod:`besman.sim.manipulation` - movement primitives from goals; pick and
   place planning.
 - :mod:`besman.sim.throwing`, :mod:`besman.sim.pick_place` - the tasks, evaluated in batches
   (:mod:`besman.sim.evaluation`: local cores or Ray).
 """
 
+from besman.sim.arm import Arm
 from besman.sim.evaluation import Evaluation
-from besman.sim.executor import Executor, ExecutorConfig, MotionStatus
+from besman.sim.executor import Executor, ExecutorConfig
+from besman.sim.motions import MotionStatus
 from besman.sim.pick_place import PickPlaceTask
 from besman.sim.tasks import TaskBounds
 from besman.sim.throwing import ThrowingConfig, ThrowingTask
 from besman.sim.world import World, tabletop_world, throwing_world
 
 __all__ = [
+    "Arm",
     "Evaluation",
     "Executor",
     "ExecutorConfig",

@@ -27,6 +27,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from besman.skills.errors import InputError
+
 BACKENDS = ("threads", "ray")
 
 
@@ -53,7 +55,7 @@ class TaskConfig(Protocol):
 
 def check_backend(backend: str) -> None:
     if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        raise InputError(f"backend must be one of {BACKENDS}, got {backend!r}")
 
 
 _TASKS: dict[Any, Any] = {}  # per worker process: configuration -> built task
@@ -97,7 +99,7 @@ def evaluate_on_ray(
     try:
         import ray
     except ImportError:
-        raise ValueError("backend='ray' needs Ray: pip install 'besman[distributed]'") from None
+        raise InputError("backend='ray' needs Ray: pip install 'besman[distributed]'") from None
     if not ray.is_initialized():
         ray.init(include_dashboard=False, log_to_driver=False)
     workers = max(1, int(ray.available_resources().get("CPU", 1)))

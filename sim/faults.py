@@ -8,6 +8,8 @@ can fail cleanly and the world can be reset.
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -37,35 +39,57 @@ class FaultMonitor:
         self.model = model
         self.joint_margin = joint_margin
         self.max_speed = max_speed
+        self._max_squared_speed = max_speed**2
         limited = np.flatnonzero(model.jnt_limited & (model.jnt_type >= mujoco.mjtJoint.mjJNT_SLIDE.value))
         self._limited_joints = limited
         self._addresses = model.jnt_qposadr[limited]
+        self._lower, self._upper = model.jnt_range[limited, 0], model.jnt_range[limited, 1]
+        self._serious = np.array([int(w) for w in SERIOUS_WARNINGS])
         self._warnings = np.zeros(len(SERIOUS_WARNINGS), dtype=int)
 
     def reset(self, data: mujoco.MjData) -> None:
         """Forgets warnings that happened before now."""
         self._warnings = self._counts(data)
+        self._all_warnings = data.warning.number.tolist()
 
     def _counts(self, data: mujoco.MjData) -> np.ndarray:
-        return np.array([data.warning[w].number for w in SERIOUS_WARNINGS])
+        return data.warning.number[self._serious]
 
     def check(self, data: mujoco.MjData) -> str | None:
         """The first fault found in ``data`` since :meth:`reset`, or None."""
-        counts = self._counts(data)
-        new = np.flatnonzero(counts > self._warnings)
-        if new.size:
-            name = SERIOUS_WARNINGS[int(new[0])].name.removeprefix("mjWARN_")
-            return f"mujoco warning {name} at t={data.time:.3f} s"
-        if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
-            return f"the simulation diverged (NaN or inf in the state) at t={data.time:.3f} s"
+        # Runs every control cycle, so the common case (no fault) is decided by cheap bounds: any new warning
+        # at all, |qvel|^2 (NaN with a NaN, at least the largest speed squared) and qpos . qpos (NaN with a
+        # NaN); only when one trips are the exact checks made.
+        warnings = data.warning.number.tolist()
+        if warnings != self._all_warnings:
+            counts = self._counts(data)
+            new = np.flatnonzero(counts > self._warnings)
+            if new.size:
+                name = SERIOUS_WARNINGS[int(new[0])].name.removeprefix("mjWARN_")
+                return f"mujoco warning {name} at t={data.time:.3f} s"
+            self._all_warnings = warnings  # only harmless ones (e.g. buffer growth)
+        qvel, qpos = data.qvel, data.qpos
+        squared_speed, squared_position = float(qvel @ qvel), float(qpos @ qpos)
+        if not (squared_speed <= self._max_squared_speed and math.isfinite(squared_position)):
+            fault = self._divergence(data)
+            if fault is not None:
+                return fault
+        return self._range_fault(data)
+
+    def _divergence(self, data: mujoco.MjData) -> str | None:
         speed = np.abs(data.qvel)
-        if speed.max() > self.max_speed:
+        fastest = speed.max()  # NaN if any is NaN
+        if not (np.isfinite(fastest) and np.all(np.isfinite(data.qpos))):
+            return f"the simulation diverged (NaN or inf in the state) at t={data.time:.3f} s"
+        if fastest > self.max_speed:
             dof = int(speed.argmax())
             joint = self.model.joint(self.model.dof_jntid[dof]).name
             return f"the simulation diverged: joint {joint} moves at {speed.max():.3g} at t={data.time:.3f} s"
+        return None
+
+    def _range_fault(self, data: mujoco.MjData) -> str | None:
         positions = data.qpos[self._addresses]
-        ranges = self.model.jnt_range[self._limited_joints]
-        excess = np.maximum(ranges[:, 0] - positions, positions - ranges[:, 1])
+        excess = np.maximum(self._lower - positions, positions - self._upper)
         if excess.size and excess.max() > self.joint_margin:
             worst = int(excess.argmax())
             joint = self.model.joint(self._limited_joints[worst]).name

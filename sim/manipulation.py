@@ -1,4 +1,4 @@
-"""Planning top-down pick and place motions for an executor, as movement primitives.
+"""Planning top-down pick and place motions for an arm, as movement primitives.
 
 A pick is three hand poses above, at and over the object (approach, grasp, lift); a placement is three over,
 at and above the target (carry, place, retreat). :func:`plan_pick` and :func:`plan_place` choose the hand
@@ -16,15 +16,16 @@ from dataclasses import astuple, dataclass, fields
 
 import numpy as np
 
-import besman.robots as robots
-from besman.sim.executor import Executor
+from besman.sim.arm import Arm
 from besman.sim.primitives import point_to_point, straight_line, top_down
+from besman.sim.references import DEFAULT_SETTINGS, ReferenceSettings, at_rest, joint_reference
 from besman.sim.world import SHELF, TABLE, GraspableObject
 from besman.skills import MovementPrimitive, Trajectory
+from besman.skills.errors import BesmanError, InputError
 from besman.skills.validation import finite_array
 
 
-class PlanningError(ValueError):
+class PlanningError(BesmanError):
     """No motion satisfies the plan's conditions; the message says which."""
 
 
@@ -49,7 +50,7 @@ class PickPlacePlan:
     def from_theta(cls, theta) -> PickPlacePlan:
         theta = finite_array("theta", theta)
         if theta.shape != (len(fields(cls)),):
-            raise ValueError(
+            raise InputError(
                 f"theta must have {len(fields(cls))} entries "
                 f"({', '.join(f.name for f in fields(cls))}), got shape {theta.shape}"
             )
@@ -62,7 +63,7 @@ class PickPlacePlan:
             and abs(plan.grasp_height) <= 0.03
             and 0.0 <= plan.release_height <= 0.05
         ):
-            raise ValueError(f"theta is outside the plan's valid ranges: {plan}")
+            raise InputError(f"theta is outside the plan's valid ranges: {plan}")
         return plan
 
     def theta(self) -> np.ndarray:
@@ -86,70 +87,104 @@ MAX_DEVIATION = {"descend": 0.005, "place": 0.005, "lift": 0.02, "retreat": 0.02
 
 
 def plan_leg(
-    executor: Executor,
+    arm: Arm,
     start: np.ndarray,
     positions: list[np.ndarray],
     names: tuple[str, str],
     duration: float,
     allowed: tuple[str, ...],
+    settings: ReferenceSettings,
 ) -> _Leg | None:
     """The best hand yaw for three top-down poses reached one after the other from the configuration
     ``start``: each reachable (solved from the previous one), collision-free except with ``allowed`` bodies,
     and the joint-space moves between them (``names``) staying within :data:`MAX_DEVIATION` of a straight
-    line. Among the yaws that work, the one whose moves keep farthest from the joint limits."""
-    best: _Leg | None = None
-    span = executor.upper - executor.lower
-    for yaw in GRASP_YAWS:
-        orientation, configurations, previous = top_down(yaw), [], start
-        for index, position in enumerate(positions):
-            result = executor.solve_ik(
-                position, orientation, initial=previous, restarts=4 if index == 0 else 0
-            )
-            if not result.success or executor.collisions(result.qpos, allowed):
-                break
-            configurations.append(result.qpos)
-            previous = result.qpos
-        else:
-            primitives = [
-                straight_line(name, a, b, orientation, executor, duration)
-                for name, a, b in zip(names, configurations[:-1], positions[1:], strict=True)
-            ]
-            if any(primitive is None for primitive in primitives):
-                continue
-            references = tuple(
-                executor.primitive_reference(primitive, start=a)
-                for primitive, a in zip(primitives, configurations[:-1], strict=True)
-            )
-            configurations[1:] = [reference.positions[-1] for reference in references]
-            straight = all(
-                deviation(executor, reference, a, b) < MAX_DEVIATION[name]
-                for name, reference, a, b in zip(
-                    names, references, positions[:-1], positions[1:], strict=True
-                )
-            )
-            joints = np.concatenate([reference.positions for reference in references])
-            if straight and not any(
-                executor.collisions(q, allowed) for q in joints[:: max(1, len(joints) // 20)]
-            ):
-                clearance = float((np.minimum(joints - executor.lower, executor.upper - joints) / span).min())
-                if best is None or clearance > best.clearance:
-                    best = _Leg(tuple(configurations), tuple(primitives), references, clearance)
+    line. Among the yaws that work, the one whose moves keep farthest from the joint limits (the first of
+    :data:`GRASP_YAWS` on a tie).
+
+    Building a yaw's moves is the expensive part, so it is a branch and bound: both moves start at a pose's
+    configuration, so the closer of the first two configurations to a limit bounds the yaw's clearance from
+    above; yaws are built in order of that bound, and one that cannot beat the best so far is not built.
+    The choice is the same as building every yaw."""
+    candidates = []
+    for index, yaw in enumerate(GRASP_YAWS):
+        orientation = top_down(yaw)
+        configurations = _pose_configurations(arm, start, positions, orientation, allowed)
+        if configurations is not None:
+            bound = min(_clearance(arm, configurations[0]), _clearance(arm, configurations[1]))
+            candidates.append((bound, index, orientation, configurations))
+    best, best_index = None, len(GRASP_YAWS)
+    for bound, index, orientation, configurations in sorted(candidates, key=lambda c: (-c[0], c[1])):
+        if best is not None and (bound, -index) <= (best.clearance, -best_index):
+            break  # neither this yaw nor any after it can beat the best
+        leg = _build_leg(arm, configurations, positions, orientation, names, duration, allowed, settings)
+        if leg is not None and (best is None or (leg.clearance, -index) > (best.clearance, -best_index)):
+            best, best_index = leg, index
     return best
 
 
-def site_path(executor: Executor, reference: Trajectory, samples: int = 20) -> np.ndarray:
-    """Positions of the executor's site along a joint reference (about ``samples`` of them)."""
-    return np.array(
-        [
-            robots.forward_kinematics(executor.world.robot, executor.full_qpos(q), executor.site).position
-            for q in reference.positions[:: max(1, len(reference.times) // samples)]
-        ]
+def _clearance(arm: Arm, joints: np.ndarray) -> float:
+    """The smallest distance of any joint from a limit, as a fraction of its range (over all rows)."""
+    return float((np.minimum(joints - arm.lower, arm.upper - joints) / (arm.upper - arm.lower)).min())
+
+
+def _pose_configurations(
+    arm: Arm,
+    start: np.ndarray,
+    positions: list[np.ndarray],
+    orientation: np.ndarray,
+    allowed: tuple[str, ...],
+) -> list[np.ndarray] | None:
+    """Collision-free configurations for the poses, each solved from the previous one; None if one fails."""
+    configurations, previous = [], start
+    for index, position in enumerate(positions):
+        result = arm.solve_ik(position, orientation, initial=previous, restarts=4 if index == 0 else 0)
+        if not result.success or arm.collisions(result.qpos, allowed):
+            return None
+        configurations.append(result.qpos)
+        previous = result.qpos
+    return configurations
+
+
+def _build_leg(
+    arm: Arm,
+    configurations: list[np.ndarray],
+    positions: list[np.ndarray],
+    orientation: np.ndarray,
+    names: tuple[str, str],
+    duration: float,
+    allowed: tuple[str, ...],
+    settings: ReferenceSettings,
+) -> _Leg | None:
+    """The two straight moves between the poses, if they stay straight and collision-free."""
+    primitives = [
+        straight_line(name, a, b, orientation, arm, duration)
+        for name, a, b in zip(names, configurations[:-1], positions[1:], strict=True)
+    ]
+    if any(primitive is None for primitive in primitives):
+        return None
+    references = tuple(
+        joint_reference(arm, primitive, at_rest(a), settings)
+        for primitive, a in zip(primitives, configurations[:-1], strict=True)
     )
+    straight = all(
+        deviation(arm, reference, a, b) < MAX_DEVIATION[name]
+        for name, reference, a, b in zip(names, references, positions[:-1], positions[1:], strict=True)
+    )
+    joints = np.concatenate([reference.positions for reference in references])
+    if not straight or any(arm.collisions(q, allowed) for q in joints[:: max(1, len(joints) // 20)]):
+        return None
+    ends = [configurations[0], *(reference.positions[-1] for reference in references)]
+    return _Leg(tuple(ends), tuple(primitives), references, _clearance(arm, joints))
 
 
-def deviation(executor: Executor, reference: Trajectory, start: np.ndarray, end: np.ndarray) -> float:
+def site_path(arm: Arm, reference: Trajectory, samples: int = 20) -> np.ndarray:
+    """Positions of the arm's site along a joint reference (about ``samples`` of them)."""
+    return arm.site_path(reference.positions[:: max(1, len(reference.times) // samples)])
+
+
+def deviation(arm: Arm, reference: Trajectory, start: np.ndarray, end: np.ndarray) -> float:
     """Largest distance of the site's path along a joint reference from the straight segment start-end."""
-    path = site_path(executor, reference)
+    path = site_path(arm, reference)
     direction = (end - start) / np.linalg.norm(end - start)
     offsets = path - start
     return float(np.linalg.norm(offsets - np.outer(offsets @ direction, direction), axis=1).max())
@@ -157,7 +192,8 @@ def deviation(executor: Executor, reference: Trajectory, start: np.ndarray, end:
 
 @dataclass(frozen=True)
 class PickMotions:
-    """Approach (from the executor's state when planned), descend and lift, and the configuration after it."""
+    """Approach (from the configuration it was planned from), descend and lift, and the configuration
+    after it."""
 
     approach: MovementPrimitive
     descend: MovementPrimitive
@@ -182,13 +218,21 @@ def heights(item: GraspableObject, plan: PickPlacePlan) -> tuple[float, float, f
     return grasp, carry, place
 
 
-def plan_pick(executor: Executor, item: GraspableObject, object_xy, plan: PickPlacePlan) -> PickMotions:
-    """Motions that grasp ``item`` standing on the table at ``object_xy`` and lift it to carrying height."""
+def plan_pick(
+    arm: Arm,
+    start: np.ndarray,
+    item: GraspableObject,
+    object_xy,
+    plan: PickPlacePlan,
+    settings: ReferenceSettings = DEFAULT_SETTINGS,
+) -> PickMotions:
+    """Motions that grasp ``item`` standing on the table at ``object_xy`` from the configuration ``start``
+    and lift it to carrying height."""
     object_xy = np.asarray(object_xy, dtype=float)
     grasp_z, carry_z, _ = heights(item, plan)
     leg = plan_leg(
-        executor,
-        executor.position,
+        arm,
+        start,
         [
             np.r_[object_xy, grasp_z + plan.approach_height],
             np.r_[object_xy, grasp_z],
@@ -197,33 +241,41 @@ def plan_pick(executor: Executor, item: GraspableObject, object_xy, plan: PickPl
         ("descend", "lift"),
         plan.descend_time,
         allowed=(item.name,),
+        settings=settings,
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down grasp of the object")
-    approach = point_to_point("approach", executor.position, leg.configurations[0], executor)
+    approach = point_to_point("approach", start, leg.configurations[0], arm)
     return PickMotions(approach, *leg.primitives, leg.configurations[-1])
 
 
 def plan_place(
-    executor: Executor, item: GraspableObject, start: np.ndarray, place_xy, plan: PickPlacePlan
+    arm: Arm,
+    start: np.ndarray,
+    item: GraspableObject,
+    place_xy,
+    plan: PickPlacePlan,
+    settings: ReferenceSettings = DEFAULT_SETTINGS,
 ) -> PlaceMotions:
     """Motions that carry ``item`` from the configuration ``start`` (holding it at carrying height) to
     ``place_xy`` on the shelf, set it down and retreat."""
     place_xy = np.asarray(place_xy, dtype=float)
     _, carry_z, place_z = heights(item, plan)
     leg = plan_leg(
-        executor,
+        arm,
         start,
         [np.r_[place_xy, carry_z], np.r_[place_xy, place_z], np.r_[place_xy, place_z + plan.approach_height]],
         ("place", "retreat"),
         plan.descend_time,
         allowed=(item.name,),
+        settings=settings,
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down placement at the target")
-    transport = point_to_point("transport", start, leg.configurations[0], executor, plan.transport_time)
+    transport = point_to_point("transport", start, leg.configurations[0], arm, plan.transport_time)
     # The joint-space transport cannot run into a joint limit, but its hand path must stay over the shelf.
-    lowest = float(site_path(executor, executor.primitive_reference(transport, start=start), 40)[:, 2].min())
+    reference = joint_reference(arm, transport, at_rest(start), settings)
+    lowest = float(site_path(arm, reference, 40)[:, 2].min())
     if lowest - item.half_height - plan.grasp_height < SHELF.height + 0.01:
         raise PlanningError(f"the transport would sweep the box {lowest:.3f} m low over the shelf")
     return PlaceMotions(transport, *leg.primitives)

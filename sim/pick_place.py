@@ -29,15 +29,9 @@ import mujoco
 import numpy as np
 
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
-from besman.sim.executor import (
-    Executor,
-    FollowReference,
-    GripperMotion,
-    Motion,
-    MotionStatus,
-    limit_violations,
-)
+from besman.sim.executor import Executor, limit_violations
 from besman.sim.manipulation import OPEN, PickPlacePlan, PlanningError, plan_pick, plan_place
+from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
 from besman.sim.tasks import TaskBounds
 from besman.sim.world import DEFAULT_BOX, SHELF, TABLE, GraspableObject, World, tabletop_world
 from besman.skills.validation import finite_array
@@ -130,8 +124,9 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
     world.place_on(item.name, TABLE.name, *object_xy)
     executor = Executor(world)
     try:
-        pick = plan_pick(executor, item, object_xy, plan)
-        put = plan_place(executor, item, pick.lifted, place_xy, plan)
+        settings = executor.reference_settings
+        pick = plan_pick(executor.arm, executor.position, item, object_xy, plan, settings)
+        put = plan_place(executor.arm, pick.lifted, item, place_xy, plan, settings)
     except PlanningError as error:
         return _failure(world, "plan", str(error))
     steps = [
@@ -148,15 +143,11 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
     monitor = _BoxMonitor(world, item.name, executor)
     for step in steps:
         # Primitives start where the previous motion left the robot.
-        motion = (
-            step
-            if isinstance(step, Motion)
-            else FollowReference(step.name, executor.primitive_reference(step))
-        )
+        motion = step if isinstance(step, Motion) else FollowPrimitive(step)
         executor.run(motion, timeout=15.0, observe=monitor.update)
         if motion.status is not MotionStatus.SUCCEEDED:
             return _failure(world, motion.name, motion.message, monitor)
-        if motion.name in ("lift", "transport", "place") and not executor.holds(item.name):
+        if motion.name in ("lift", "transport", "place") and not executor.hand.holds(item.name):
             return _failure(world, motion.name, "the box slipped out of the hand", monitor)
         if motion.name == "lift":
             if monitor.highest < TABLE.height + item.half_height + 0.05:
@@ -206,11 +197,11 @@ class _BoxMonitor:
     def update(self) -> None:
         model, data = self.world.model, self.world.data
         self.highest = max(self.highest, float(data.xpos[self.body][2]))
-        for i in range(data.ncon):
-            contact = data.contact[i]
-            if self.body in (model.geom_bodyid[contact.geom1], model.geom_bodyid[contact.geom2]):
-                mujoco.mj_contactForce(model, data, i, self._force)
-                self.max_force = max(self.max_force, float(self._force[0]))
+        # Every control cycle: find the box's contacts in one vectorised pass, then measure only those.
+        bodies = model.geom_bodyid[data.contact.geom]  # (ncon, 2)
+        for i in np.flatnonzero((bodies == self.body).any(axis=1)):
+            mujoco.mj_contactForce(model, data, int(i), self._force)
+            self.max_force = max(self.max_force, float(self._force[0]))
 
 
 def _failure(world: World, step: str, message: str, monitor: _BoxMonitor | None = None) -> PickPlaceDetail:

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from besman.skills.errors import InputError
 from besman.skills.validation import finite_array
 
 
@@ -23,9 +24,9 @@ class TaskBounds:
 
     def __post_init__(self) -> None:
         if not len(self.names) == len(self.low) == len(self.high):
-            raise ValueError("bounds need as many names as low and high values")
+            raise InputError("bounds need as many names as low and high values")
         if any(lo > hi for lo, hi in zip(self.low, self.high, strict=True)):
-            raise ValueError(f"bounds have low > high: {self.low} vs {self.high}")
+            raise InputError(f"bounds have low > high: {self.low} vs {self.high}")
 
     @property
     def size(self) -> int:
@@ -38,18 +39,18 @@ class TaskBounds:
         if taus.ndim == 1:
             taus = taus[None]
         if taus.ndim != 2 or taus.shape[1] != self.size:
-            raise ValueError(
+            raise InputError(
                 f"tau must have {self.size} entries ({', '.join(self.names)}), got shape {taus.shape}"
             )
         if n is not None and len(taus) == 1:
             taus = np.repeat(taus, n, axis=0)
         elif n is not None and len(taus) != n:
-            raise ValueError(f"got {len(taus)} taus for {n} candidates")
+            raise InputError(f"got {len(taus)} taus for {n} candidates")
         low, high = np.asarray(self.low), np.asarray(self.high)
         outside = (taus < low - 1e-12) | (taus > high + 1e-12)
         if outside.any():
             row, column = (int(i) for i in np.argwhere(outside)[0])
-            raise ValueError(
+            raise InputError(
                 f"tau {self.names[column]} = {taus[row, column]:.4g} is outside the task's bounds "
                 f"[{self.low[column]:.4g}, {self.high[column]:.4g}]"
             )

@@ -38,7 +38,8 @@ from mujoco import rollout
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_on_ray
 from besman.sim.tasks import TaskBounds
 from besman.sim.world import throwing_world
-from besman.skills import DMP
+from besman.skills import DMP, DMPSettings, quaternion
+from besman.skills.errors import InputError
 from besman.skills.validation import finite_array
 
 FAILURE_REWARD = -1000.0
@@ -106,7 +107,7 @@ class ThrowingTask:
     def __init__(self, config: ThrowingConfig | None = None, **overrides) -> None:
         config = config or ThrowingConfig(**overrides)
         if config.variant not in VARIANTS:
-            raise ValueError(f"variant must be one of {sorted(VARIANTS)}, got {config.variant!r}")
+            raise InputError(f"variant must be one of {sorted(VARIANTS)}, got {config.variant!r}")
         self.variant = VARIANTS[config.variant]
         self.config = config
         self.execution_time = (
@@ -133,12 +134,12 @@ class ThrowingTask:
             or np.any(start < self.arm.lower)
             or np.any(start > self.arm.upper)
         ):
-            raise ValueError(
+            raise InputError(
                 f"start must be {self.arm.size} joint values within the arm's ranges, got {start}"
             )
         self.dmp = DMP(
             self.arm.size + 1,
-            n_weights=config.n_weights,
+            settings=DMPSettings(n_weights=config.n_weights),
             execution_time=self.execution_time,
             dt=self.timestep,
             start=np.append(start, 0.0),
@@ -164,7 +165,7 @@ class ThrowingTask:
         holder = data.site("ball_holder")
         ball_address = model.jnt_qposadr[model.body_jntadr[self.ball]]
         data.qpos[ball_address : ball_address + 3] = holder.xpos
-        mujoco.mju_mat2Quat(data.qpos[ball_address + 3 : ball_address + 7], holder.xmat)
+        data.qpos[ball_address + 3 : ball_address + 7] = quaternion.from_matrix(holder.xmat.reshape(3, 3))
         mujoco.mj_forward(model, data)
         state = np.empty(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS.value))
         mujoco.mj_getState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS.value)
@@ -176,7 +177,7 @@ class ThrowingTask:
         throw; in the hardware variant near (-1.15, 0)."""
         dmp = DMP(
             self.dmp.n_dims,
-            n_weights=self.config.n_weights,
+            settings=DMPSettings(n_weights=self.config.n_weights),
             execution_time=self.execution_time,
             dt=self.timestep,
             start=self.dmp.start,
@@ -244,7 +245,7 @@ class ThrowingTask:
         """
         check_backend(backend)
         if nan not in ("raise", "penalize"):
-            raise ValueError(f"nan must be 'raise' or 'penalize', got {nan!r}")
+            raise InputError(f"nan must be 'raise' or 'penalize', got {nan!r}")
         if nan == "penalize":
             thetas = np.array(thetas, dtype=float, ndmin=2)
             broken = ~np.isfinite(thetas).all(axis=1) if thetas.ndim == 2 else np.zeros(0, dtype=bool)
@@ -254,7 +255,7 @@ class ThrowingTask:
         if thetas.ndim == 1:
             thetas = thetas[None]
         if thetas.ndim != 2 or thetas.shape[1] != self.n_params:
-            raise ValueError(f"theta must have {self.n_params} entries, got shape {thetas.shape[1:]}")
+            raise InputError(f"theta must have {self.n_params} entries, got shape {thetas.shape[1:]}")
         taus = self.bounds.check(taus, n=len(thetas))
         if backend == "ray":
             return evaluate_on_ray(self.config, thetas, taus)

@@ -20,6 +20,7 @@ import numpy as np
 
 import besman.robots as robots
 from besman.robots import Pose, Robot
+from besman.skills.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -111,7 +112,7 @@ class World:
             or quaternion.shape != (4,)
             or not np.all(np.isfinite(np.r_[position, quaternion]))
         ):
-            raise ValueError(f"object pose must be 3 + 4 finite numbers, got {position!r}, {quaternion!r}")
+            raise InputError(f"object pose must be 3 + 4 finite numbers, got {position!r}, {quaternion!r}")
         address, dof = self.model.jnt_qposadr[joint], self.model.jnt_dofadr[joint]
         self.data.qpos[address : address + 3] = position
         self.data.qpos[address + 3 : address + 7] = quaternion / np.linalg.norm(quaternion)
@@ -130,7 +131,7 @@ class World:
 def _add_object(spec: mujoco.MjSpec, item: GraspableObject, position) -> None:
     shapes = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER}
     if item.shape not in shapes:
-        raise ValueError(f"object {item.name!r}: shape must be one of {sorted(shapes)}, got {item.shape!r}")
+        raise InputError(f"object {item.name!r}: shape must be one of {sorted(shapes)}, got {item.shape!r}")
     body = spec.worldbody.add_body(name=item.name, pos=list(position))
     body.add_freejoint(name=item.name)
     body.add_geom(

@@ -1,11 +1,34 @@
-"""Movement primitives and skill templates: DMPs, primitives, templates and the template pool.
+"""Movement primitives and what they are made of: DMPs, Cartesian DMPs, primitives and their files.
 
-Depends on numpy and scipy only; every other besman package may use it.
+- :mod:`besman.skills.dmp`, :mod:`besman.skills.cartesian_dmp` - the DMP kinds, generated exactly and for
+  whole populations; :mod:`besman.skills.dmp_core` - what they share (settings, theta scaling, the ridge
+  fit, the :class:`Primitive` protocol); :mod:`besman.skills.forcing`, :mod:`besman.skills.transformation` -
+  the forcing term and the transformation system, derived and cited.
+- :mod:`besman.skills.primitive` - a DMP with its metadata, saved as JSON + NPZ (:mod:`besman.skills.storage`:
+  atomic writes, JSON fields and schema versions checked, never pickle).
+- :mod:`besman.skills.quaternion` - unit quaternions (w, x, y, z); :mod:`besman.skills.validation` - argument
+  checks; :mod:`besman.skills.errors` - :class:`BesmanError`, the base of every error besman raises for bad
+  input.
+
+Depends on numpy, scipy and scikit-learn only; every other besman package may use it.
 """
 
 from besman.skills.cartesian_dmp import CartesianDMP, CartesianTrajectory
 from besman.skills.dmp import DMP, Trajectory
+from besman.skills.dmp_core import DMPSettings, Primitive
+from besman.skills.errors import BesmanError, InputError
 from besman.skills.forcing import ForcingBasis
 from besman.skills.primitive import MovementPrimitive
 
-__all__ = ["DMP", "CartesianDMP", "CartesianTrajectory", "ForcingBasis", "MovementPrimitive", "Trajectory"]
+__all__ = [
+    "DMP",
+    "BesmanError",
+    "CartesianDMP",
+    "CartesianTrajectory",
+    "DMPSettings",
+    "ForcingBasis",
+    "InputError",
+    "MovementPrimitive",
+    "Primitive",
+    "Trajectory",
+]

@@ -29,7 +29,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from besman.skills import quaternion
-from besman.skills.dmp import DMP
+from besman.skills.dmp import DEFAULT_SETTINGS, DMP
+from besman.skills.dmp_core import DMPSettings, fit_weights
+from besman.skills.errors import InputError
 from besman.skills.validation import broadcast_vector, finite_array, increasing_times
 
 STEP_FRACTION = 1.0 / 1000.0  # internal orientation step ~ tau / 1000 (output steps are split evenly)
@@ -54,20 +56,20 @@ class CartesianDMP:
     """Position and orientation DMP; quaternions are (w, x, y, z).
 
     Args:
-        n_weights: basis functions per dimension.
+        settings: basis functions and gains, shared by position and orientation
+            (:class:`~besman.skills.dmp_core.DMPSettings`).
         execution_time, dt: as for :class:`~besman.skills.dmp.DMP`.
         scale: exploration scale of the position entries of theta (m).
         rotation_scale: exploration scale of the orientation entries of theta (rad).
         start_position, start_velocity, goal_position, goal_velocity: position boundary values.
         start_orientation, goal_orientation: unit quaternions (w, x, y, z); default identity.
         start_angular_velocity: world-frame angular velocity at the start (rad/s).
-        alpha_y, beta_y, final_phase, overlap: as for :class:`~besman.skills.dmp.DMP`.
     """
 
     def __init__(
         self,
         *,
-        n_weights: int = 10,
+        settings: DMPSettings = DEFAULT_SETTINGS,
         execution_time: float = 1.0,
         dt: float = 0.01,
         scale=0.1,
@@ -79,14 +81,10 @@ class CartesianDMP:
         start_orientation=None,
         start_angular_velocity=None,
         goal_orientation=None,
-        alpha_y: float = 25.0,
-        beta_y: float = 6.25,
-        final_phase: float = 0.01,
-        overlap: float = 0.8,
     ) -> None:
         self.position = DMP(
             3,
-            n_weights=n_weights,
+            settings=settings,
             execution_time=execution_time,
             dt=dt,
             scale=scale,
@@ -94,14 +92,10 @@ class CartesianDMP:
             start_velocity=start_velocity,
             goal=goal_position,
             goal_velocity=goal_velocity,
-            alpha_y=alpha_y,
-            beta_y=beta_y,
-            final_phase=final_phase,
-            overlap=overlap,
         )
         self.rotation_scale = broadcast_vector("rotation_scale", rotation_scale, 3)
         if np.any(self.rotation_scale <= 0):
-            raise ValueError(f"rotation_scale must be positive, got {self.rotation_scale}")
+            raise InputError(f"rotation_scale must be positive, got {self.rotation_scale}")
         identity = np.array([1.0, 0.0, 0.0, 0.0])
         self.start_orientation = quaternion.normalized(
             "start_orientation", identity if start_orientation is None else start_orientation
@@ -112,11 +106,15 @@ class CartesianDMP:
         self.start_angular_velocity = broadcast_vector(
             "start_angular_velocity", start_angular_velocity, 3, 0.0
         )
-        self.rotation_weights = np.zeros((3, n_weights))
+        self.rotation_weights = np.zeros((3, self.n_weights))
+
+    @property
+    def settings(self) -> DMPSettings:
+        return self.position.settings
 
     @property
     def n_weights(self) -> int:
-        return self.position.n_weights
+        return self.settings.n_weights
 
     @property
     def execution_time(self) -> float:
@@ -142,8 +140,7 @@ class CartesianDMP:
     # -- the parameter vector ------------------------------------------------------------------------------
 
     def _rotation_units(self) -> np.ndarray:
-        peaks = self.position.system.peak_displacements(self.position.basis)
-        return self.rotation_scale[:, None] * np.concatenate([1.0 / peaks, [1.0]])[None, :]
+        return self.rotation_scale[:, None] * np.concatenate([self.settings.weight_units, [1.0]])[None, :]
 
     def get_params(self) -> np.ndarray:
         rotation = np.column_stack([self.rotation_weights, quaternion.rotation_vector(self.goal_orientation)])
@@ -160,7 +157,7 @@ class CartesianDMP:
     def _check_theta(self, theta) -> np.ndarray:
         theta = finite_array("theta", theta)
         if theta.shape != (self.n_params,):
-            raise ValueError(f"theta must have {self.n_params} entries, got shape {theta.shape}")
+            raise InputError(f"theta must have {self.n_params} entries, got shape {theta.shape}")
         return theta
 
     def _raw_rotation(self, thetas: np.ndarray) -> np.ndarray:
@@ -179,7 +176,7 @@ class CartesianDMP:
         """Trajectories of a population: thetas (N, n_params) -> arrays (N, T, 3) and (N, T, 4)."""
         thetas = finite_array("thetas", thetas)
         if thetas.ndim != 2 or thetas.shape[1] != self.n_params:
-            raise ValueError(f"thetas must have shape (N, {self.n_params}), got {thetas.shape}")
+            raise InputError(f"thetas must have shape (N, {self.n_params}), got {thetas.shape}")
         translation = self.position.trajectories(thetas[:, : self.position.n_params], run_time=run_time)
         rotation = self._raw_rotation(thetas)
         goals = quaternion.from_rotation_vector(rotation[:, :, -1])
@@ -239,7 +236,7 @@ class CartesianDMP:
         if not several:
             times, positions, orientations = [times], [positions], [orientations]
         if not (isinstance(times, list | tuple) and len(times) == len(positions) == len(orientations) > 0):
-            raise ValueError(
+            raise InputError(
                 "give as many time, position and orientation arrays (one demonstration or lists)"
             )
         self.position.imitate(list(times), list(positions), regularization=regularization)
@@ -251,7 +248,7 @@ class CartesianDMP:
             t = increasing_times(f"{name}: times", t, minimum_length=3)
             q = quaternion.make_continuous(quaternion.normalized(f"{name}: orientations", q))
             if q.shape != (len(t), 4):
-                raise ValueError(f"{name}: orientations must have shape ({len(t)}, 4), got {q.shape}")
+                raise InputError(f"{name}: orientations must have shape ({len(t)}, 4), got {q.shape}")
             duration = t[-1] - t[0]
             s = (t - t[0]) / duration
             omega = _angular_velocity(s, q)  # normalised time: d/ds
@@ -263,10 +260,7 @@ class CartesianDMP:
             starts.append(q[0])
             goals.append(q[-1])
             start_velocities.append(omega[0] / tau)
-        design, target = np.concatenate(features), np.concatenate(targets)
-        gram = design.T @ design
-        ridge = max(regularization, 0.0) * np.trace(gram) / self.n_weights
-        self.rotation_weights = np.linalg.solve(gram + ridge * np.eye(self.n_weights), design.T @ target).T
+        self.rotation_weights = fit_weights(features, targets, regularization)
         self.start_orientation = quaternion.mean(np.array(starts))
         self.goal_orientation = quaternion.mean(np.array(goals))
         self.start_angular_velocity = np.mean(start_velocities, axis=0)

@@ -32,9 +32,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from besman.skills.dmp_core import DMPSettings, fit_weights
+from besman.skills.errors import InputError
 from besman.skills.forcing import ForcingBasis
 from besman.skills.transformation import TransformationSystem, moving_goal_basis
 from besman.skills.validation import broadcast_vector, finite_array, increasing_times, positive
+
+DEFAULT_SETTINGS = DMPSettings()
 
 
 @dataclass(frozen=True)
@@ -62,21 +66,20 @@ class DMP:
 
     Args:
         n_dims: number of dimensions.
-        n_weights: basis functions (weights) per dimension.
+        settings: the forcing term's basis functions and the gains
+            (:class:`~besman.skills.dmp_core.DMPSettings`).
         execution_time: tau, the duration of the movement (s).
         dt: time step of generated trajectories (s); the samples end exactly at the run time.
         scale: per-dimension (or one) exploration scale of theta, in the dimension's units.
         start, start_velocity, start_acceleration: the start state (defaults: zeros).
         goal, goal_velocity: the end state at tau (defaults: zeros).
-        alpha_y, beta_y: gains of the transformation system (critically damped for beta = alpha / 4).
-        final_phase, overlap: phase at tau and overlap of neighbouring basis functions.
     """
 
     def __init__(
         self,
         n_dims: int,
         *,
-        n_weights: int = 10,
+        settings: DMPSettings = DEFAULT_SETTINGS,
         execution_time: float = 1.0,
         dt: float = 0.01,
         scale=0.1,
@@ -85,16 +88,13 @@ class DMP:
         start_acceleration=None,
         goal=None,
         goal_velocity=None,
-        alpha_y: float = 25.0,
-        beta_y: float = 6.25,
-        final_phase: float = 0.01,
-        overlap: float = 0.8,
     ) -> None:
         if not isinstance(n_dims, int | np.integer) or n_dims < 1:
-            raise ValueError(f"n_dims must be a positive integer, got {n_dims!r}")
+            raise InputError(f"n_dims must be a positive integer, got {n_dims!r}")
+        if not isinstance(settings, DMPSettings):
+            raise InputError(f"settings must be a DMPSettings, got {type(settings).__name__}")
         self.n_dims = int(n_dims)
-        self.basis = ForcingBasis(n_weights, final_phase, overlap)
-        self.system = TransformationSystem(float(alpha_y), float(beta_y))
+        self.settings = settings
         self._execution_time = positive("execution_time", execution_time)
         self._dt = positive("dt", dt)
         self.scale = self._scale(scale)
@@ -109,8 +109,16 @@ class DMP:
     # -- configuration -------------------------------------------------------------------------------------
 
     @property
+    def basis(self) -> ForcingBasis:
+        return self.settings.basis
+
+    @property
+    def system(self) -> TransformationSystem:
+        return self.settings.system
+
+    @property
     def n_weights(self) -> int:
-        return self.basis.n_weights
+        return self.settings.n_weights
 
     @property
     def n_params(self) -> int:
@@ -138,7 +146,7 @@ class DMP:
     def _scale(self, scale) -> np.ndarray:
         scale = broadcast_vector("scale", scale, self.n_dims)
         if np.any(scale <= 0):
-            raise ValueError(f"scale must be positive, got {scale}")
+            raise InputError(f"scale must be positive, got {scale}")
         return scale
 
     def configure(self, **meta_parameters) -> DMP:
@@ -154,15 +162,14 @@ class DMP:
             elif name in ("execution_time", "dt"):
                 setattr(self, name, value)
             else:
-                raise ValueError(f"unknown meta-parameter {name!r}; known: {', '.join(known)}")
+                raise InputError(f"unknown meta-parameter {name!r}; known: {', '.join(known)}")
         return self
 
     # -- the parameter vector ------------------------------------------------------------------------------
 
     def _units(self) -> np.ndarray:
         """(n_dims, N + 2): raw value = theta * units (weights, goal, goal velocity)."""
-        per_weight = 1.0 / self.system.peak_displacements(self.basis)
-        unscaled = np.concatenate([per_weight, [1.0, 1.0 / self._execution_time]])
+        unscaled = np.concatenate([self.settings.weight_units, [1.0, 1.0 / self._execution_time]])
         return self.scale[:, None] * unscaled[None, :]
 
     def get_params(self) -> np.ndarray:
@@ -181,7 +188,7 @@ class DMP:
     def _check_theta(self, theta) -> np.ndarray:
         theta = finite_array("theta", theta)
         if theta.ndim != 1 or theta.shape[0] != self.n_params:
-            raise ValueError(
+            raise InputError(
                 f"theta must have {self.n_params} entries "
                 f"(n_dims {self.n_dims} x (n_weights {self.n_weights} + 2)), "
                 f"got shape {theta.shape}"
@@ -243,9 +250,9 @@ class DMP:
         velocities), which are then None."""
         thetas = finite_array("thetas", thetas)
         if thetas.ndim != 2 or thetas.shape[1] != self.n_params:
-            raise ValueError(f"thetas must have shape (N, {self.n_params}), got {thetas.shape}")
+            raise InputError(f"thetas must have shape (N, {self.n_params}), got {thetas.shape}")
         if derivatives not in (0, 1, 2):
-            raise ValueError(f"derivatives must be 0, 1 or 2, got {derivatives!r}")
+            raise InputError(f"derivatives must be 0, 1 or 2, got {derivatives!r}")
         linear_map = self._linear_map(self._run_time(run_time))
         raw = self._raw(thetas)  # (N, n_dims, n_weights + 2)
         start_state = np.column_stack([self.start, self.start_velocity, self.start_acceleration])
@@ -298,10 +305,7 @@ class DMP:
             targets.append(weight * target)
             features.append(weight * self.basis.features(s))
             boundaries.append(boundary)
-        design, target = np.concatenate(features), np.concatenate(targets)
-        gram = design.T @ design
-        ridge = max(regularization, 0.0) * np.trace(gram) / self.n_weights
-        self.weights = np.linalg.solve(gram + ridge * np.eye(self.n_weights), design.T @ target).T
+        self.weights = fit_weights(features, targets, regularization)
         mean = np.mean(boundaries, axis=0)
         self.execution_time = tau
         self.start, self.start_velocity, self.start_acceleration = mean[0], mean[1] / tau, mean[2] / tau**2
@@ -315,7 +319,7 @@ class DMP:
             velocities = None if velocities is None else [velocities]
             accelerations = None if accelerations is None else [accelerations]
         if not isinstance(times, list | tuple) or len(times) != len(positions) or not positions:
-            raise ValueError("give as many time arrays as position arrays (one demonstration or a list)")
+            raise InputError("give as many time arrays as position arrays (one demonstration or a list)")
         demos = []
         for k, (t, y) in enumerate(zip(times, positions, strict=True)):
             name = f"demonstration {k}" if several else "demonstration"
@@ -324,7 +328,7 @@ class DMP:
             if y.ndim == 1 and self.n_dims == 1:
                 y = y[:, None]
             if y.shape != (len(t), self.n_dims):
-                raise ValueError(
+                raise InputError(
                     f"{name}: positions must have shape ({len(t)}, {self.n_dims}), got {y.shape}"
                 )
             yd = self._derivative(name, "velocities", velocities, k, t, y)
@@ -338,5 +342,5 @@ class DMP:
             return np.gradient(y, t, axis=0, edge_order=2)
         value = finite_array(f"{name}: {what}", given[k])
         if value.shape != y.shape:
-            raise ValueError(f"{name}: {what} must have shape {y.shape}, got {value.shape}")
+            raise InputError(f"{name}: {what} must have shape {y.shape}, got {value.shape}")
         return value

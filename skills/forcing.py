@@ -22,6 +22,8 @@ from functools import cached_property
 
 import numpy as np
 
+from besman.skills.errors import InputError
+
 
 @dataclass(frozen=True)
 class ForcingBasis:
@@ -33,11 +35,11 @@ class ForcingBasis:
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_weights, int) or self.n_weights < 2:
-            raise ValueError(f"n_weights must be an integer >= 2, got {self.n_weights!r}")
+            raise InputError(f"n_weights must be an integer >= 2, got {self.n_weights!r}")
         if not 0.0 < self.final_phase < 1.0:
-            raise ValueError(f"final_phase must be in (0, 1), got {self.final_phase!r}")
+            raise InputError(f"final_phase must be in (0, 1), got {self.final_phase!r}")
         if not 0.0 < self.overlap < 1.0:
-            raise ValueError(f"overlap must be in (0, 1), got {self.overlap!r}")
+            raise InputError(f"overlap must be in (0, 1), got {self.overlap!r}")
 
     @property
     def alpha_z(self) -> float:

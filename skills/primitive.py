@@ -23,7 +23,17 @@ import numpy as np
 
 from besman.skills.cartesian_dmp import CartesianDMP
 from besman.skills.dmp import DMP
-from besman.skills.storage import npz_bytes, read_json, read_npz, sha256, write_atomically
+from besman.skills.dmp_core import DMPSettings
+from besman.skills.errors import InputError
+from besman.skills.storage import (
+    check_schema_version,
+    npz_bytes,
+    read_json,
+    read_npz,
+    require_field,
+    sha256,
+    write_atomically,
+)
 
 SCHEMA_VERSION = 1
 SPACES = ("joint", "cartesian")
@@ -70,16 +80,16 @@ class MovementPrimitive:
 
     def __post_init__(self) -> None:
         if self.space not in SPACES:
-            raise ValueError(f"space must be one of {SPACES}, got {self.space!r}")
+            raise InputError(f"space must be one of {SPACES}, got {self.space!r}")
         expected = CartesianDMP if self.space == "cartesian" else DMP
         if not isinstance(self.dmp, expected):
-            raise ValueError(
+            raise InputError(
                 f"a {self.space}-space primitive needs a {expected.__name__}, got {type(self.dmp).__name__}"
             )
         try:
             json.dumps(self.provenance)
         except TypeError as error:
-            raise ValueError(f"provenance must be JSON-compatible: {error}") from None
+            raise InputError(f"provenance must be JSON-compatible: {error}") from None
 
     @property
     def theta(self) -> np.ndarray:
@@ -113,32 +123,30 @@ class MovementPrimitive:
         json_path = _json_path(path)
         document = read_json(json_path)
         where = str(json_path)
-        if document.get("schema_version") != SCHEMA_VERSION:
-            raise ValueError(
-                f"{where}: schema_version {document.get('schema_version')!r} is not supported "
-                f"(expected {SCHEMA_VERSION})"
-            )
+        check_schema_version(document, SCHEMA_VERSION, where)
         if document.get("kind") != "movement_primitive":
-            raise ValueError(f"{where}: kind must be 'movement_primitive', got {document.get('kind')!r}")
-        reference = _field(document, "arrays", dict, where)
-        npz_name = _field(reference, "file", str, f"{where}: arrays")
+            raise InputError(f"{where}: kind must be 'movement_primitive', got {document.get('kind')!r}")
+        reference = require_field(document, "arrays", dict, where)
+        npz_name = require_field(reference, "file", str, f"{where}: arrays")
         if Path(npz_name).name != npz_name:
-            raise ValueError(f"{where}: arrays.file must be a file name beside the JSON, got {npz_name!r}")
-        arrays = read_npz(json_path.parent / npz_name, _field(reference, "sha256", str, f"{where}: arrays"))
+            raise InputError(f"{where}: arrays.file must be a file name beside the JSON, got {npz_name!r}")
+        arrays = read_npz(
+            json_path.parent / npz_name, require_field(reference, "sha256", str, f"{where}: arrays")
+        )
         try:
-            dmp = _restore_dmp(_field(document, "dmp", dict, where), arrays)
+            dmp = _restore_dmp(require_field(document, "dmp", dict, where), arrays)
             return cls(
                 dmp=dmp,
-                name=_field(document, "name", str, where),
-                space=_field(document, "space", str, where),
+                name=require_field(document, "name", str, where),
+                space=require_field(document, "space", str, where),
                 robot=_optional(document, "robot", where),
                 group=_optional(document, "group", where),
                 frame=_optional(document, "frame", where),
-                provenance=_field(document, "provenance", dict, where),
+                provenance=require_field(document, "provenance", dict, where),
             )
         except ValueError as error:
             message = str(error)
-            raise ValueError(message if message.startswith(where) else f"{where}: {message}") from None
+            raise InputError(message if message.startswith(where) else f"{where}: {message}") from None
 
 
 def _json_path(path: str | Path) -> Path:
@@ -146,19 +154,10 @@ def _json_path(path: str | Path) -> Path:
     return path if path.suffix == ".json" else path.with_name(path.name + ".json")
 
 
-def _field(mapping: dict, key: str, kind: type, where: str):
-    if key not in mapping:
-        raise ValueError(f"{where}: missing field {key!r}")
-    value = mapping[key]
-    if not isinstance(value, kind) or isinstance(value, bool):
-        raise ValueError(f"{where}: field {key!r} must be a {kind.__name__}, got {value!r}")
-    return value
-
-
 def _optional(mapping: dict, key: str, where: str) -> str | None:
     value = mapping.get(key)
     if value is not None and not isinstance(value, str):
-        raise ValueError(f"{where}: field {key!r} must be a string or null, got {value!r}")
+        raise InputError(f"{where}: field {key!r} must be a string or null, got {value!r}")
     return value
 
 
@@ -170,10 +169,10 @@ def _dmp_state(dmp: DMP | CartesianDMP) -> tuple[dict[str, Any], dict[str, np.nd
         "n_weights": position.n_weights,
         "execution_time": position.execution_time,
         "dt": position.dt,
-        "alpha_y": position.system.alpha_y,
-        "beta_y": position.system.beta_y,
-        "final_phase": position.basis.final_phase,
-        "overlap": position.basis.overlap,
+        "alpha_y": position.settings.alpha_y,
+        "beta_y": position.settings.beta_y,
+        "final_phase": position.settings.final_phase,
+        "overlap": position.settings.overlap,
     }
     arrays = {name: np.asarray(getattr(position, name), dtype=float) for name in _POSITION_ARRAYS}
     if isinstance(dmp, CartesianDMP):
@@ -184,30 +183,33 @@ def _dmp_state(dmp: DMP | CartesianDMP) -> tuple[dict[str, Any], dict[str, np.nd
 def _restore_dmp(config: dict[str, Any], arrays: dict[str, np.ndarray]) -> DMP | CartesianDMP:
     kind = config.get("type")
     if kind not in ("DMP", "CartesianDMP"):
-        raise ValueError(f"dmp.type must be 'DMP' or 'CartesianDMP', got {kind!r}")
+        raise InputError(f"dmp.type must be 'DMP' or 'CartesianDMP', got {kind!r}")
     scalars = {}
     for name in _SCALARS:
         value = config.get(name)
         if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
-            raise ValueError(f"dmp.{name} must be a finite number, got {value!r}")
+            raise InputError(f"dmp.{name} must be a finite number, got {value!r}")
         scalars[name] = float(value)
     n_weights = config.get("n_weights")
     if not isinstance(n_weights, int) or isinstance(n_weights, bool):
-        raise ValueError(f"dmp.n_weights must be an integer, got {n_weights!r}")
+        raise InputError(f"dmp.n_weights must be an integer, got {n_weights!r}")
     names = _POSITION_ARRAYS + (_ROTATION_ARRAYS if kind == "CartesianDMP" else ())
     missing = [name for name in names if name not in arrays]
     if missing:
-        raise ValueError(f"the arrays lack {', '.join(missing)}")
+        raise InputError(f"the arrays lack {', '.join(missing)}")
     vectors = {name: arrays[name] for name in names if "weights" not in name}
+    settings = DMPSettings(
+        n_weights, *(scalars.pop(name) for name in ("alpha_y", "beta_y", "final_phase", "overlap"))
+    )
     if kind == "DMP":
         n_dims = config.get("n_dims")
         if not isinstance(n_dims, int) or isinstance(n_dims, bool):
-            raise ValueError(f"dmp.n_dims must be an integer, got {n_dims!r}")
-        dmp = DMP(n_dims, n_weights=n_weights, **scalars, **vectors)
+            raise InputError(f"dmp.n_dims must be an integer, got {n_dims!r}")
+        dmp = DMP(n_dims, settings=settings, **scalars, **vectors)
         dmp.weights = _weights("weights", arrays["weights"], (n_dims, n_weights))
         return dmp
     cartesian = CartesianDMP(
-        n_weights=n_weights,
+        settings=settings,
         **scalars,
         scale=vectors["scale"],
         start_position=vectors["start"],
@@ -229,7 +231,7 @@ def _restore_dmp(config: dict[str, Any], arrays: dict[str, np.ndarray]) -> DMP |
 
 def _weights(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     if value.shape != shape:
-        raise ValueError(f"array {name!r} must have shape {shape}, got {value.shape}")
+        raise InputError(f"array {name!r} must have shape {shape}, got {value.shape}")
     if not np.issubdtype(value.dtype, np.floating) or not np.all(np.isfinite(value)):
-        raise ValueError(f"array {name!r} must hold finite floats")
+        raise InputError(f"array {name!r} must hold finite floats")
     return value.astype(float)

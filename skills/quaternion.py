@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from besman.skills.errors import InputError
 from besman.skills.validation import finite_array
 
 
@@ -16,10 +17,10 @@ def normalized(name: str, q) -> np.ndarray:
     """``q`` (..., 4) scaled to unit norm; a ``ValueError`` for NaN, a wrong shape or a zero norm."""
     q = finite_array(name, q)
     if q.shape[-1:] != (4,):
-        raise ValueError(f"{name} must be quaternions (w, x, y, z) with 4 entries, got shape {q.shape}")
+        raise InputError(f"{name} must be quaternions (w, x, y, z) with 4 entries, got shape {q.shape}")
     norm = np.linalg.norm(q, axis=-1, keepdims=True)
     if np.any(norm < 1e-12):
-        raise ValueError(f"{name} has a zero-norm quaternion")
+        raise InputError(f"{name} has a zero-norm quaternion")
     return q / norm
 
 
@@ -61,6 +62,40 @@ def from_rotation_vector(v: np.ndarray) -> np.ndarray:
     # sin(angle / 2) / angle -> 1/2 as the angle -> 0.
     factor = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5)
     return np.concatenate([np.cos(half), factor * v], axis=-1)
+
+
+def from_matrix(matrix) -> np.ndarray:
+    """Unit quaternions (..., 4) of rotation matrices (..., 3, 3), with w >= 0 (Shepperd 1978: the largest of
+    the four squared components is found first and the others divided by it, which is stable everywhere)."""
+    m = np.asarray(matrix, dtype=float)
+    trace = m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2]
+    # 4 w^2, 4 x^2, 4 y^2, 4 z^2 (each >= 0 for a rotation), and the off-diagonal sums and differences.
+    squares = np.stack(
+        [
+            1.0 + trace,
+            1.0 + 2.0 * m[..., 0, 0] - trace,
+            1.0 + 2.0 * m[..., 1, 1] - trace,
+            1.0 + 2.0 * m[..., 2, 2] - trace,
+        ],
+        axis=-1,
+    )
+    zy, yz = m[..., 2, 1], m[..., 1, 2]
+    xz, zx = m[..., 0, 2], m[..., 2, 0]
+    yx, xy = m[..., 1, 0], m[..., 0, 1]
+    # Row k: 4 q_k times each of (w, x, y, z); the row of the largest component is divided by 4 q_k.
+    products = np.stack(
+        [
+            np.stack([squares[..., 0], zy - yz, xz - zx, yx - xy], axis=-1),
+            np.stack([zy - yz, squares[..., 1], xy + yx, xz + zx], axis=-1),
+            np.stack([xz - zx, xy + yx, squares[..., 2], yz + zy], axis=-1),
+            np.stack([yx - xy, xz + zx, yz + zy, squares[..., 3]], axis=-1),
+        ],
+        axis=-2,
+    )
+    best = np.argmax(squares, axis=-1)[..., None, None]
+    row = np.take_along_axis(products, np.broadcast_to(best, (*best.shape[:-1], 4)), axis=-2)[..., 0, :]
+    q = row / (2.0 * np.sqrt(np.take_along_axis(squares, best[..., 0], axis=-1)))
+    return np.where(q[..., :1] < 0.0, -q, q)
 
 
 def make_continuous(q: np.ndarray) -> np.ndarray:

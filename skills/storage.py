@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from besman.skills.errors import BesmanError, InputError
+
 
 def write_atomically(path: str | Path, data: bytes) -> Path:
     """Writes ``data`` to ``path`` via a temporary file and a rename."""
@@ -44,16 +46,42 @@ def sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def read_json(path: Path) -> dict[str, Any]:
-    """A JSON object from ``path``; a ``ValueError`` naming the file if it is missing or malformed."""
+def read_json(path: Path, error: type[BesmanError] = InputError) -> dict[str, Any]:
+    """A JSON object from ``path``; ``error`` names the file if it is missing or malformed."""
     try:
         value = json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise ValueError(f"{path}: no such file") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise ValueError(f"{path}: not valid JSON ({error})") from None
+        raise error(f"{path}: no such file") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as problem:
+        raise error(f"{path}: not valid JSON ({problem})") from None
     if not isinstance(value, dict):
-        raise ValueError(f"{path}: expected a JSON object at the top level")
+        raise error(f"{path}: expected a JSON object at the top level")
+    return value
+
+
+def check_schema_version(
+    document: dict[str, Any], expected: int, where: str, error: type[BesmanError] = InputError
+) -> None:
+    """Refuses a document whose ``schema_version`` is not ``expected`` (the message names ``where``)."""
+    version = document.get("schema_version")
+    if version != expected or isinstance(version, bool):
+        raise error(f"{where}: schema_version {version!r} is not supported (expected {expected})")
+
+
+def require_field(
+    mapping: dict[str, Any],
+    key: str,
+    kind: type | tuple[type, ...],
+    where: str,
+    error: type[BesmanError] = InputError,
+) -> Any:
+    """``mapping[key]`` checked to be a ``kind`` (never a bool for a number); the message names the field."""
+    if key not in mapping:
+        raise error(f"{where}: missing field {key!r}")
+    value = mapping[key]
+    if not isinstance(value, kind) or isinstance(value, bool):
+        expected = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
+        raise error(f"{where}.{key}: expected {expected}, got {value!r}")
     return value
 
 
@@ -62,11 +90,11 @@ def read_npz(path: Path, expected_sha256: str | None = None) -> dict[str, np.nda
     try:
         data = Path(path).read_bytes()
     except FileNotFoundError:
-        raise ValueError(f"{path}: no such file") from None
+        raise InputError(f"{path}: no such file") from None
     if expected_sha256 is not None and sha256(data) != expected_sha256:
-        raise ValueError(f"{path}: the checksum does not match its JSON file (corrupted or modified)")
+        raise InputError(f"{path}: the checksum does not match its JSON file (corrupted or modified)")
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as archive:
             return {name: archive[name] for name in archive.files}
     except Exception as error:  # zipfile, zlib and numpy raise many kinds for damaged archives
-        raise ValueError(f"{path}: not a readable NPZ archive ({type(error).__name__}: {error})") from None
+        raise InputError(f"{path}: not a readable NPZ archive ({type(error).__name__}: {error})") from None

@@ -25,6 +25,7 @@ at the requested times by cubic Hermite interpolation with exact derivatives.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -32,6 +33,7 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.signal import lfilter
 
+from besman.skills.errors import InputError
 from besman.skills.forcing import ForcingBasis
 
 FINE_STEPS_PER_MOVEMENT = 16384
@@ -55,6 +57,13 @@ def _quintic_coefficients() -> np.ndarray:
 
 
 _QUINTIC = _quintic_coefficients()
+
+
+def minimum_jerk(s: np.ndarray) -> np.ndarray:
+    """The minimum-jerk profile 10 s^3 - 15 s^4 + 6 s^5 from 0 to 1 over s in [0, 1] (Flash and Hogan 1985):
+    the quintic from rest to rest, the moving goal's shape for a step."""
+    s = np.asarray(s, dtype=float)
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
 
 
 def moving_goal_basis(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -90,7 +99,7 @@ class TransformationSystem:
         for name in ("alpha_y", "beta_y"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a finite positive number, got {value!r}")
+                raise InputError(f"{name} must be a finite positive number, got {value!r}")
 
     @property
     def matrix(self) -> np.ndarray:
@@ -122,6 +131,13 @@ class TransformationSystem:
         )
         dde = basis.features(s) - self.alpha_y * self.beta_y * e - self.alpha_y * de
         return e, de, dde
+
+    @staticmethod
+    @functools.cache
+    def shared(alpha_y: float, beta_y: float) -> TransformationSystem:
+        """The one system of these gains, shared by every DMP, so its responses are computed once per
+        process rather than once per DMP (planning makes many DMPs of the same gains)."""
+        return TransformationSystem(alpha_y, beta_y)
 
     def peak_displacements(self, basis: ForcingBasis) -> np.ndarray:
         """max |e(s)| over the movement (s in [0, 1]) for a unit weight on each basis function."""

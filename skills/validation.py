@@ -4,24 +4,26 @@ from __future__ import annotations
 
 import numpy as np
 
+from besman.skills.errors import InputError
+
 
 def finite_array(name: str, value, *, ndim: int | None = None, shape: tuple | None = None) -> np.ndarray:
     """``value`` as a float array, checked for shape and for NaN or inf (a ``ValueError`` names ``name``)."""
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be numeric, got {type(value).__name__}") from None
+        raise InputError(f"{name} must be numeric, got {type(value).__name__}") from None
     if ndim is not None and array.ndim != ndim:
-        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {array.shape}")
+        raise InputError(f"{name} must have {ndim} dimension(s), got shape {array.shape}")
     if shape is not None and (
         len(shape) != array.ndim
         or any(want not in (None, got) for want, got in zip(shape, array.shape, strict=True))
     ):
         expected = "(" + ", ".join("any" if want is None else str(want) for want in shape) + ")"
-        raise ValueError(f"{name} must have shape {expected}, got {array.shape}")
+        raise InputError(f"{name} must have shape {expected}, got {array.shape}")
     if not np.all(np.isfinite(array)):
         bad = np.argwhere(~np.isfinite(array))[0]
-        raise ValueError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
+        raise InputError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
     return array
 
 
@@ -29,11 +31,11 @@ def increasing_times(name: str, value, *, minimum_length: int = 2) -> np.ndarray
     """A 1-D array of strictly increasing, finite times."""
     times = finite_array(name, value, ndim=1)
     if len(times) < minimum_length:
-        raise ValueError(f"{name} needs at least {minimum_length} samples, got {len(times)}")
+        raise InputError(f"{name} needs at least {minimum_length} samples, got {len(times)}")
     steps = np.diff(times)
     if np.any(steps <= 0):
         first = int(np.argmax(steps <= 0))
-        raise ValueError(
+        raise InputError(
             f"{name} must be strictly increasing: {name}[{first + 1}] = {times[first + 1]!r} "
             f"follows {name}[{first}] = {times[first]!r}"
         )
@@ -45,9 +47,9 @@ def positive(name: str, value) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
+        raise InputError(f"{name} must be a number, got {value!r}") from None
     if not np.isfinite(number) or number <= 0:
-        raise ValueError(f"{name} must be a finite positive number, got {value!r}")
+        raise InputError(f"{name} must be a finite positive number, got {value!r}")
     return number
 
 
@@ -59,5 +61,5 @@ def broadcast_vector(name: str, value, size: int, default: float = 0.0) -> np.nd
     if array.ndim == 0:
         return np.full(size, float(array))
     if array.shape != (size,):
-        raise ValueError(f"{name} must have shape ({size},), got {array.shape}")
+        raise InputError(f"{name} must have shape ({size},), got {array.shape}")
     return array.copy()

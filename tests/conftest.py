@@ -15,3 +15,10 @@ def shared_recordings() -> Path:
     if not SHARED_RECORDINGS.exists():
         pytest.skip("the shared recordings sit beside the repository (../shared)")
     return SHARED_RECORDINGS
+
+
+@pytest.fixture(autouse=True)
+def _in_a_temporary_directory(tmp_path, monkeypatch):
+    """Every test runs in its own temporary folder: MuJoCo writes MUJOCO_LOG.TXT into the working directory
+    on a warning (tests provoke faults on purpose), and nothing a test writes may land in the checkout."""
+    monkeypatch.chdir(tmp_path)

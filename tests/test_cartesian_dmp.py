@@ -2,15 +2,13 @@
 
 import numpy as np
 import pytest
+from helpers import rotation_angle
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from besman.skills import CartesianDMP
 from besman.skills import quaternion as quat
-
-
-def minimum_jerk(s):
-    return 10 * s**3 - 15 * s**4 + 6 * s**5
+from besman.skills.transformation import minimum_jerk
 
 
 def demo(n=501, duration=1.0, angle=1.0):
@@ -25,17 +23,13 @@ def demo(n=501, duration=1.0, angle=1.0):
     return times, positions, quat.from_rotation_vector(rotations)
 
 
-def angle_between(q1, q2):
-    return np.linalg.norm(quat.rotation_vector(quat.multiply(q1, quat.conjugate(q2))), axis=-1)
-
-
 def test_imitation_reproduces_position_and_orientation():
     times, positions, orientations = demo()
     dmp = CartesianDMP(dt=times[1]).imitate(times, positions, orientations)
     trajectory = dmp.trajectory()
     assert np.max(np.abs(trajectory.positions - positions)) < 0.01 * 0.3
-    assert np.max(angle_between(trajectory.orientations, orientations)) < 0.01 * 1.0
-    assert angle_between(trajectory.orientations[-1], orientations[-1]) < 0.01
+    assert np.max(rotation_angle(trajectory.orientations, orientations)) < 0.01 * 1.0
+    assert rotation_angle(trajectory.orientations[-1], orientations[-1]) < 0.01
 
 
 @settings(max_examples=20, deadline=None)
@@ -57,7 +51,7 @@ def test_orientation_converges_to_the_goal():
     goal = quat.from_rotation_vector(np.array([0.3, -1.2, 2.0]))
     dmp = CartesianDMP(dt=0.01, goal_orientation=goal)
     trajectory = dmp.trajectory(run_time=3.0)
-    assert angle_between(trajectory.orientations[-1], goal) < 1e-4
+    assert rotation_angle(trajectory.orientations[-1], goal) < 1e-4
     assert np.linalg.norm(trajectory.angular_velocities[-1]) < 1e-3
 
 
@@ -71,7 +65,7 @@ def test_the_integrator_is_second_order_accurate(monkeypatch):
     reference = dmp.trajectory().orientations
     for fraction in (1e-2, 1e-3):
         monkeypatch.setattr(module, "STEP_FRACTION", fraction)
-        errors.append(np.max(angle_between(dmp.trajectory().orientations, reference)))
+        errors.append(np.max(rotation_angle(dmp.trajectory().orientations, reference)))
     assert errors[1] < 1e-5
     assert errors[0] / errors[1] == pytest.approx(100, rel=0.2), "error falls with the square of the step"
 
@@ -110,7 +104,7 @@ def test_several_demonstrations_average_the_goal_orientation():
     _, _, turned = demo(n=201, angle=1.4)
     dmp = CartesianDMP(dt=0.01).imitate([times, times], [positions, positions], [orientations, turned])
     middle = quat.from_rotation_vector(np.array([1.2, 0.0, -0.5]))
-    assert angle_between(dmp.goal_orientation, middle) < 0.01
+    assert rotation_angle(dmp.goal_orientation, middle) < 0.01
 
 
 @pytest.mark.parametrize(

@@ -6,16 +6,11 @@ import sys
 
 import numpy as np
 import pytest
+from helpers import run_cli
 from PIL import Image
 
 from besman import __version__
 from besman.cli import main
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 def test_version_and_help(capsys):
@@ -29,13 +24,13 @@ def test_version_and_help(capsys):
 
 
 def test_robots_lists_the_models(capsys):
-    code, out, _ = run(capsys, "robots")
+    code, out, _ = run_cli(capsys, "robots")
     assert code == 0
     assert [line.split("\t")[0] for line in out.splitlines()] == ["aila", "pa10"]
 
 
 def test_robots_show_json_is_the_joint_table(capsys):
-    code, out, _ = run(capsys, "robots", "show", "aila", "--json")
+    code, out, _ = run_cli(capsys, "robots", "show", "aila", "--json")
     assert code == 0
     table = json.loads(out)
     joints = {joint["name"]: joint for joint in table["joints"]}
@@ -54,13 +49,13 @@ def test_robots_show_json_is_the_joint_table(capsys):
 
 
 def test_robots_show_prints_a_table(capsys):
-    code, out, _ = run(capsys, "robots", "show", "pa10")
+    code, out, _ = run_cli(capsys, "robots", "show", "pa10")
     assert code == 0
     assert "S1" in out and "W2" in out and "velocity" in out and "6.283" in out
 
 
 def test_unknown_robot_is_a_clear_error(capsys):
-    code, _, err = run(capsys, "robots", "show", "r2d2")
+    code, _, err = run_cli(capsys, "robots", "show", "r2d2")
     assert code == 2
     assert "unknown robot 'r2d2'; available: aila, pa10" in err
     assert "Traceback" not in err
@@ -68,7 +63,7 @@ def test_unknown_robot_is_a_clear_error(capsys):
 
 def test_render_writes_a_png(capsys, tmp_path):
     out_file = tmp_path / "pictures" / "pa10.png"
-    code, _, _ = run(
+    code, _, _ = run_cli(
         capsys, "robots", "render", "pa10", "--out", str(out_file), "--width", "320", "--height", "240"
     )
     assert code == 0
@@ -79,7 +74,7 @@ def test_render_writes_a_png(capsys, tmp_path):
 
 
 def test_render_rejects_a_non_png_name(capsys, tmp_path):
-    code, _, err = run(
+    code, _, err = run_cli(
         capsys,
         "robots",
         "render",
@@ -94,6 +89,7 @@ def test_render_rejects_a_non_png_name(capsys, tmp_path):
     assert code == 2 and "must end in .png" in err
 
 
+@pytest.mark.slow
 def test_python_dash_m_besman(tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "besman", "robots"], capture_output=True, text=True, cwd=tmp_path, check=True

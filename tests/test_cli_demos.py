@@ -4,16 +4,17 @@ import json
 
 import numpy as np
 import pytest
+from helpers import run_cli
 from PIL import Image
 
-from besman.cli import main
+from besman.skills.transformation import minimum_jerk
 
 
 def recording(tmp_path, seed=0, rate=60.0, gap=None, name="reach", reach=(0.3, -0.2, 0.1)):
     """A Qualisys-style TSV of one hand marker: hold, minimum-jerk reach, hold; frames start at 500."""
     rng = np.random.default_rng(seed)
     s = np.arange(60) / 60
-    path = np.r_[np.zeros(60), 10 * s**3 - 15 * s**4 + 6 * s**5, np.ones(60)]
+    path = np.r_[np.zeros(60), minimum_jerk(s), np.ones(60)]
     positions = 1000 * (np.outer(path, reach) + rng.normal(0, 0.001, (len(path), 3)))
     header = [
         "NO_OF_FRAMES\t180",
@@ -30,25 +31,19 @@ def recording(tmp_path, seed=0, rate=60.0, gap=None, name="reach", reach=(0.3, -
     return file
 
 
-def run(capsys, *argv):
-    code = main(list(argv))
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
-
 def test_demos_show_summarises_a_recording(capsys, tmp_path):
     file = recording(tmp_path, gap=(70, 75))
-    code, out, _ = run(capsys, "demos", "show", str(file), "--json")
+    code, out, _ = run_cli(capsys, "demos", "show", str(file), "--json")
     summary = json.loads(out)
     assert code == 0 and summary["samples"] == 180 and summary["rate_hz"] == pytest.approx(60.0, rel=1e-3)
     assert summary["frames"] == [500, 679] and summary["markers"]["Hand top"]["gaps"] == [[570, 574]]
-    code, out, _ = run(capsys, "demos", "show", str(file))
+    code, out, _ = run_cli(capsys, "demos", "show", str(file))
     assert code == 0 and "Hand top: 1 gaps, 5 frames missing (570-574)" in out
 
 
 def test_segment_prints_json_in_the_files_frames_and_writes_a_plot(capsys, tmp_path):
     file = recording(tmp_path)
-    code, out, _ = run(capsys, "segment", str(file), "--json", "--plot", str(tmp_path / "seg.png"))
+    code, out, _ = run_cli(capsys, "segment", str(file), "--json", "--plot", str(tmp_path / "seg.png"))
     result = json.loads(out)
     assert code == 0
     assert result["boundaries_frame"][0] == 500 and result["boundaries_frame"][-1] == 679
@@ -64,9 +59,9 @@ def test_segment_prints_json_in_the_files_frames_and_writes_a_plot(capsys, tmp_p
 
 def test_segment_errors_name_the_file_and_the_problem(capsys, tmp_path):
     file = recording(tmp_path)
-    code, _, err = run(capsys, "segment", str(file), "--marker", "Wrist")
+    code, _, err = run_cli(capsys, "segment", str(file), "--marker", "Wrist")
     assert code == 2 and str(file) in err and "no marker 'Wrist'" in err
-    code, _, err = run(capsys, "segment", str(tmp_path / "missing.tsv"))
+    code, _, err = run_cli(capsys, "segment", str(tmp_path / "missing.tsv"))
     assert code == 2 and "missing.tsv" in err
 
 
@@ -75,14 +70,14 @@ def test_segment_labels_the_movements_like_the_nearest_annotated_example(capsys,
     annotation = [{"start index": 560, "end index": 620, "label": "reach"}]
     (tmp_path / "example_manually_segmented.json").write_text(json.dumps(annotation))
     file = recording(tmp_path, seed=2)
-    code, out, _ = run(capsys, "segment", str(file), "--json", "--examples", str(example))
+    code, out, _ = run_cli(capsys, "segment", str(file), "--json", "--examples", str(example))
     segments = json.loads(out)["segments"]
     assert code == 0 and [s["label"] for s in segments] == [None, "reach", None]
     assert [s["model"] for s in segments][0::2] == ["still", "still"]
-    code, out, _ = run(capsys, "segment", str(file), "--examples", str(example))
+    code, out, _ = run_cli(capsys, "segment", str(file), "--examples", str(example))
     assert code == 0 and out.splitlines()[1].endswith("reach")
-    code, _, err = run(capsys, "segment", str(file), "--examples", str(file))
+    code, _, err = run_cli(capsys, "segment", str(file), "--examples", str(file))
     assert code != 0 and f"{file}: no annotated segments" in err
     still = recording(tmp_path, seed=3, name="still", reach=(0.0, 0.0, 0.0))
-    code, out, _ = run(capsys, "segment", str(still), "--json", "--examples", str(example))
+    code, out, _ = run_cli(capsys, "segment", str(still), "--json", "--examples", str(example))
     assert code == 0 and {s["label"] for s in json.loads(out)["segments"]} == {None}

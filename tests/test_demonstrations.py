@@ -2,9 +2,11 @@
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from besman.learning.demonstration import Demonstration, DemonstrationError, load
 from besman.learning.preprocessing import SmoothingConfig, hand_pose, resample, smooth
+from besman.skills.transformation import minimum_jerk
 
 HEADER = "NO_OF_FRAMES\t4\nFREQUENCY\t60\nMARKER_NAMES\tHand\nFrame\tTime\tHand X\tHand Y\tHand Z\t\n"
 
@@ -78,7 +80,7 @@ def test_smoothing_reduces_noise_and_estimates_velocity():
     rng = np.random.default_rng(0)
     times = np.arange(0, 3, 0.01)
     s = np.clip(times / 2, 0, 1)
-    truth = np.column_stack([0.5 * (10 * s**3 - 15 * s**4 + 6 * s**5), 0.2 * np.sin(np.pi * s), 0 * s])
+    truth = np.column_stack([0.5 * minimum_jerk(s), 0.2 * np.sin(np.pi * s), 0 * s])
     noisy = truth + rng.normal(0, 0.05, truth.shape)
     demo = Demonstration(times, np.arange(len(times)), {"m": noisy})
     smoothed = smooth(demo, "m", SmoothingConfig(measurement_noise=0.05))
@@ -103,21 +105,40 @@ def test_short_gaps_are_bridged_and_long_gaps_are_refused():
         smooth(Demonstration(times, np.arange(100, 300), {"m": long}), "m")
 
 
-def test_resampling_and_hand_pose():
+def test_resampling():
     times = np.linspace(0, 1, 61)
     new_times, values = resample(times, np.column_stack([times, 2 * times]), 20.0)
     assert len(new_times) == 21
     np.testing.assert_allclose(values[:, 1], 2 * new_times)
-    top, left, right = np.array([0.0, 0.0, 0.05]), np.array([0.0, 0.04, 0.0]), np.array([0.0, -0.04, 0.0])
-    demo = Demonstration(
-        times,
-        np.arange(61),
-        {
-            "Hand top": np.tile(top, (61, 1)),
-            "Hand left": np.tile(left, (61, 1)),
-            "Hand right": np.tile(right, (61, 1)),
-        },
-    )
+
+
+def _hand(rotation: np.ndarray, offset: np.ndarray) -> tuple[Demonstration, dict[str, np.ndarray]]:
+    """Three still hand markers, rotated and shifted as a rigid body."""
+    markers = {
+        "Hand top": np.array([0.0, 0.0, 0.05]),
+        "Hand left": np.array([0.0, 0.04, 0.0]),
+        "Hand right": np.array([0.0, -0.04, 0.0]),
+    }
+    placed = {name: rotation @ point + offset for name, point in markers.items()}
+    times = np.linspace(0, 1, 61)
+    return Demonstration(times, np.arange(61), {n: np.tile(p, (61, 1)) for n, p in placed.items()}), placed
+
+
+def test_hand_pose_is_the_markers_frame():
+    """y from the right marker to the left, z the plane's normal (top - right) x y, x = y x z: for the
+    markers as given that frame is a -90 deg turn about y; turning the markers by any R turns it by R."""
+    demo, placed = _hand(np.eye(3), np.zeros(3))
     position, quaternion = hand_pose(demo)
-    np.testing.assert_allclose(position[0], (top + left + right) / 3, atol=1e-6)
+    np.testing.assert_allclose(position[0], sum(placed.values()) / 3, atol=1e-6)
+    base = Rotation.from_rotvec([0.0, -np.pi / 2, 0.0])
+    np.testing.assert_allclose(_matrices(quaternion), np.tile(base.as_matrix(), (61, 1, 1)), atol=1e-6)
+    turn = Rotation.from_rotvec([0.3, -1.1, 0.7])
+    demo, placed = _hand(turn.as_matrix(), np.array([0.4, -0.2, 1.0]))
+    position, quaternion = hand_pose(demo)
+    np.testing.assert_allclose(position[0], sum(placed.values()) / 3, atol=1e-6)
+    np.testing.assert_allclose(_matrices(quaternion)[0], (turn * base).as_matrix(), atol=1e-6)
     np.testing.assert_allclose(np.linalg.norm(quaternion, axis=1), 1.0)
+
+
+def _matrices(quaternions: np.ndarray) -> np.ndarray:
+    return Rotation.from_quat(quaternions[:, [1, 2, 3, 0]]).as_matrix()  # scipy's order is (x, y, z, w)

@@ -6,14 +6,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from besman.skills import DMP
-from besman.skills.transformation import moving_goal_basis
+from besman.skills import DMP, DMPSettings
+from besman.skills.transformation import minimum_jerk, moving_goal_basis
 
 finite = st.floats(-2.0, 2.0, allow_nan=False)
-
-
-def minimum_jerk(s):
-    return 10 * s**3 - 15 * s**4 + 6 * s**5
 
 
 def wavy_demo(n=501, duration=1.2, dims=3, phase=0.0):
@@ -251,7 +247,7 @@ def test_a_unit_step_of_any_weight_moves_the_path_by_at_most_the_scale():
         (lambda d: d.configure(speed=2), "unknown meta-parameter 'speed'"),
         (lambda d: d.configure(scale=[0.1, -1]), "scale must be positive"),
         (lambda d: DMP(0), "n_dims must be a positive integer"),
-        (lambda d: DMP(2, n_weights=1), "n_weights must be an integer >= 2"),
+        (lambda d: DMP(2, settings=DMPSettings(n_weights=1)), "n_weights must be an integer >= 2"),
         (lambda d: DMP(2, dt=float("nan")), "dt must be a finite positive number"),
     ],
 )

@@ -1,19 +1,16 @@
-"""The Ruckig executor: limits, continuity, pre-emption, Cartesian references, grasps and faults."""
+"""The Ruckig executor and its motions: limits, continuity, pre-emption, Cartesian references, grasps and
+faults."""
 
 import numpy as np
 import pytest
 
-from besman.sim.executor import (
-    Executor,
-    FollowReference,
-    GripperMotion,
-    MotionStatus,
-    MoveTo,
-    limit_violations,
-)
+from besman.sim.executor import Executor, limit_violations
+from besman.sim.motions import FollowPrimitive, FollowReference, GripperMotion, MotionStatus, MoveTo
 from besman.sim.primitives import cartesian_point_to_point, point_to_point, top_down
+from besman.sim.references import joint_reference
 from besman.sim.world import tabletop_world
 from besman.skills import DMP, MovementPrimitive
+from besman.skills.errors import BesmanError
 
 # A move of the waist and right arm from the home pose that stays in range and clear of the table.
 SAFE_MOVE = np.array([0.3, -0.3, -0.3, 0.5, -0.5, 0.4, 0.3, 0.4])
@@ -32,25 +29,27 @@ def test_a_move_respects_every_limit_and_arrives(executor):
     np.testing.assert_allclose(executor.measured_position(), target, atol=executor.config.arrival_tolerance)
     assert limit_violations(executor.log, executor) == []
     speeds = np.abs(np.array([entry.velocity for entry in executor.log])).max(axis=0)
-    assert np.any(speeds > 0.9 * executor.max_velocity), "time-optimal: some joint reaches its speed limit"
+    assert np.any(speeds > 0.9 * executor.arm.max_velocity), (
+        "time-optimal: some joint reaches its speed limit"
+    )
 
 
 def test_consecutive_primitives_chain_continuously(executor):
     """A second primitive started mid-motion continues from the commanded position, velocity and
     acceleration: the whole log stays within the jerk limit, including at the switch."""
     first = MovementPrimitive(
-        DMP(executor.dofs, execution_time=2.0, goal=executor.position + 0.8 * SAFE_MOVE), "first"
+        DMP(executor.arm.dofs, execution_time=2.0, goal=executor.position + 0.8 * SAFE_MOVE), "first"
     )
-    motion = executor.start(FollowReference("first", reference=executor.primitive_reference(first)))
+    motion = executor.start(FollowPrimitive(first))
     for _ in range(300):  # pre-empt at full speed
         executor.tick()
     assert motion.status is MotionStatus.RUNNING
     moving = executor.velocity.copy()
     assert np.abs(moving).max() > 0.1
     second = MovementPrimitive(
-        DMP(executor.dofs, execution_time=1.5, goal=executor.position + 0.3 * SAFE_MOVE), "second"
+        DMP(executor.arm.dofs, execution_time=1.5, goal=executor.position + 0.3 * SAFE_MOVE), "second"
     )
-    reference = executor.primitive_reference(second)
+    reference = _reference(executor, second)
     np.testing.assert_allclose(reference.velocities[0], moving, atol=1e-9)
     result = executor.run(FollowReference("second", reference=reference))
     assert result.status is MotionStatus.SUCCEEDED, result.message
@@ -72,27 +71,24 @@ def test_cartesian_primitive_moves_the_hand_on_a_straight_line(executor):
     world = executor.world
     start = np.array([0.55, -0.1, 1.0])
     orientation = top_down(0.0)
-    reach = point_to_point("reach", executor.position, _ik(executor, start, orientation), executor)
-    assert (
-        executor.run(FollowReference("reach", reference=executor.primitive_reference(reach))).status
-        is MotionStatus.SUCCEEDED
-    )
+    reach = point_to_point("reach", executor.position, _ik(executor, start, orientation), executor.arm)
+    assert executor.run(FollowPrimitive(reach)).status is MotionStatus.SUCCEEDED
     goal = start + [0.0, -0.1, -0.1]
-    reference = executor.primitive_reference(cartesian_point_to_point("down", goal, orientation, 1.5))
-    motion = executor.run(FollowReference("down", reference=reference))
+    motion = executor.run(FollowPrimitive(cartesian_point_to_point("down", goal, orientation, 1.5)))
     assert motion.status is MotionStatus.SUCCEEDED, motion.message
     np.testing.assert_allclose(world.data.site("right_grasp").xpos, goal, atol=3e-3)
 
 
 def test_unreachable_cartesian_pose_fails_cleanly(executor):
     far = cartesian_point_to_point("far", np.array([1.5, 0.0, 1.0]), top_down(0.0), 1.0)
-    with pytest.raises(ValueError, match=r"unreachable pose at t=.* s of the primitive"):
-        executor.primitive_reference(far)
+    with pytest.raises(BesmanError, match=r"unreachable pose at t=.* s of the primitive"):
+        executor.start(FollowPrimitive(far))
+    assert executor.motion is None, "a motion that cannot start does not replace the current one"
 
 
 def test_joint_primitive_of_the_wrong_size_is_rejected(executor):
-    with pytest.raises(ValueError, match="has 3 dimensions; the executor drives 8 joints"):
-        executor.primitive_reference(MovementPrimitive(DMP(3), "small"))
+    with pytest.raises(BesmanError, match="has 3 dimensions; the executor drives 8 joints"):
+        executor.start(FollowPrimitive(MovementPrimitive(DMP(3), "small")))
 
 
 def test_closing_on_nothing_fails_when_a_grasp_is_expected(executor):
@@ -101,7 +97,7 @@ def test_closing_on_nothing_fails_when_a_grasp_is_expected(executor):
     grasp = executor.run(GripperMotion("grasp", opening=0.0, expect_grasp=True, grasp_object="box"))
     assert grasp.status is MotionStatus.FAILED
     assert "closed on nothing" in grasp.message
-    assert not executor.holds("box")
+    assert not executor.hand.holds("box")
 
 
 def test_a_simulation_fault_fails_the_motion_and_the_world_resets(executor):
@@ -127,7 +123,11 @@ def test_a_blocked_arm_is_reported(executor):
     assert "cannot follow its command" in motion.message
 
 
+def _reference(executor, primitive):
+    return joint_reference(executor.arm, primitive, executor.stream.state(), executor.reference_settings)
+
+
 def _ik(executor, position, orientation, tolerance_ok=False):
-    result = executor.solve_ik(position, orientation, restarts=10)
+    result = executor.arm.solve_ik(position, orientation, initial=executor.position, restarts=10)
     assert result.success or tolerance_ok, result.message
     return result.qpos

@@ -16,6 +16,7 @@ from besman.learning.labelling import (
 )
 from besman.learning.segmentation import segment
 from besman.skills.primitive import MovementPrimitive
+from besman.skills.transformation import minimum_jerk
 
 RATE = 60.0
 HOLD = 36  # samples (0.6 s) of rest before each movement
@@ -33,7 +34,7 @@ def pick_and_place(seed: int, hand_markers: bool = True) -> Demonstration:
         angles.append(np.full(HOLD, orientation))
         samples = round(rng.uniform(0.8, 1.2) * RATE)
         s = np.arange(samples + 1) / samples
-        blend = 10 * s**3 - 15 * s**4 + 6 * s**5
+        blend = minimum_jerk(s)
         target = np.asarray(waypoint) + rng.normal(0, 0.02, 3)
         turn = 0.6 if label == "carry" else -orientation
         pieces.append(position + blend[:, None] * (target - position))

@@ -44,6 +44,7 @@ def test_one_episode_is_measured_from_the_simulation(task):
     assert detail.sim_time == pytest.approx(task.world.data.time)
 
 
+@pytest.mark.slow
 def test_evaluate_runs_episodes_in_parallel_and_returns_rewards(task):
     taus = [[0.5, -0.1, 0.5, -0.4], [0.6, -0.05, 0.58, -0.45]]
     result = task.evaluate(np.tile(task.default_theta(), (2, 1)), taus)

@@ -73,7 +73,7 @@ def test_unknown_robot_lists_the_available_ones():
     [
         (None, "{not json", "not valid JSON"),
         (None, "[]", "expected a JSON object"),
-        (description(schema_version=9), None, "schema_version: 9 is not supported"),
+        (description(schema_version=9), None, "schema_version 9 is not supported"),
         ({k: v for k, v in description().items() if k != "groups"}, None, "missing field 'groups'"),
         (description(groups={"arm": {"joints": ["j1", "elbow"]}}), None, "no joint 'elbow'"),
         (description(groups={"arm": {"joints": ["j1", "j1"]}}), None, "names repeat"),

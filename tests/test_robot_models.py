@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import besman.robots as robots
+from besman.skills.transformation import minimum_jerk
 
 # DFKI's joint-limit configuration (rad, rad/s), as in shared/reference/robots.md.
 AILA_LIMITS = {
@@ -286,7 +287,7 @@ def test_aila_gripper_holds_a_box_lifted_and_moved():
         for i in range(1, steps + 1):
             if start is not None:
                 s = i / steps
-                data.ctrl[arm.actuator_indices] = start + (10 * s**3 - 15 * s**4 + 6 * s**5) * (end - start)
+                data.ctrl[arm.actuator_indices] = start + minimum_jerk(s) * (end - start)
             mujoco.mj_step(model, data)
 
     def wrist_force():

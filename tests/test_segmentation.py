@@ -26,6 +26,7 @@ from besman.learning.segmentation import (
     segment_evidences,
     stratified_optimal_resampling,
 )
+from besman.skills.transformation import minimum_jerk
 
 
 @pytest.mark.parametrize(
@@ -117,6 +118,7 @@ def test_filtering_and_map_equal_brute_force_enumeration(seed):
     assert tuple(online) == points and tuple(online_models) == chosen, "no pruning: the exact MAP"
 
 
+@pytest.mark.slow
 def test_samples_follow_the_posterior():
     rng = np.random.default_rng(5)
     y = np.r_[rng.normal(0, 0.2, 4), rng.normal(1, 0.2, 4)]
@@ -144,8 +146,8 @@ def test_a_hold_move_hold_sequence_is_segmented_near_its_corners():
     rate = 20.0
     rng = np.random.default_rng(0)
     s = np.linspace(0, 1, 30)
-    minimum_jerk = 10 * s**3 - 15 * s**4 + 6 * s**5
-    path = np.r_[np.zeros(20), 0.4 * minimum_jerk, np.full(20, 0.4)]
+    profile = minimum_jerk(s)
+    path = np.r_[np.zeros(20), 0.4 * profile, np.full(20, 0.4)]
     y = np.column_stack([path, -0.5 * path, 0.2 * path]) + rng.normal(0, 0.002, (len(path), 3))
     prior = SegmentationPrior(noise=0.002)
     evidences = [segment_evidences(y, rate, model, prior) for model in POLYNOMIAL_MODELS]
@@ -173,7 +175,7 @@ def minimum_jerk_chain(
         samples = round(rng.uniform(0.7, 1.3) * rate)
         s = np.arange(samples) / samples
         target = position + rng.normal(0.0, 0.25, 3)
-        pieces.append(position + (10 * s**3 - 15 * s**4 + 6 * s**5)[:, None] * (target - position))
+        pieces.append(position + minimum_jerk(s)[:, None] * (target - position))
         corners.append(corners[-1] + len(pieces[-1]))
         holds.append(False)
         position = target
@@ -186,6 +188,7 @@ def minimum_jerk_chain(
     return demo, np.array(corners) / rate, holds
 
 
+@pytest.mark.slow
 def test_minimum_jerk_chains_with_holds_and_smooth_transitions_are_segmented_at_their_corners():
     """Every corner is found with the default hyperparameters, within +-2 samples of the segmented 20 Hz
     signal (0.1 s). The corners are the generator's change points, so the model's change points are compared
@@ -202,6 +205,7 @@ def test_minimum_jerk_chains_with_holds_and_smooth_transitions_are_segmented_at_
     assert errors.max() <= 0.1 + 1e-9
 
 
+@pytest.mark.slow
 def test_stratified_optimal_resampling_keeps_the_heavy_particles_and_is_unbiased():
     log_weights = np.log([0.5, 0.2, 0.1, 0.08, 0.06, 0.04, 0.02])
     totals = np.zeros(7)
@@ -225,6 +229,7 @@ def test_stratified_optimal_resampling_keeps_the_heavy_particles_and_is_unbiased
     np.testing.assert_allclose(totals / 4000, np.exp(tied), atol=0.01)
 
 
+@pytest.mark.slow
 def test_pruned_inference_follows_the_exact_map_on_a_long_chain():
     """A 20-reach chain (~40 s, 800 samples at 20 Hz): with 30 candidate change points the online MAP finds
     the same boundaries as exact inference; the same seed gives the same result."""

@@ -10,7 +10,8 @@ import pytest
 
 from besman.cli import main
 from besman.sim.pick_place import PICK_PLACE_BOUNDS
-from besman.trees.runner import pick_place_settings, read_log, replay, run_on_tabletop, statuses
+from besman.trees.runner import read_log, statuses
+from besman.trees.tabletop import pick_place_settings, replay, run_on_tabletop
 
 TREE = Path(__file__).resolve().parents[1] / "examples" / "trees" / "grasp_then_place.yaml"
 
@@ -55,6 +56,7 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
     assert "/grasp/approach" in writes and "/place/transport" in writes
 
 
+@pytest.mark.slow
 def test_the_log_replays_to_the_same_statuses(tmp_path):
     log = tmp_path / "run.jsonl"
     run_on_tabletop(TREE, {"object": (0.5, -0.05), "place": (0.58, -0.44)}, log=log)
@@ -108,7 +110,6 @@ def test_grasp_then_place_succeeds_in_40_random_configurations():
     assert all(s["placement_error_m"] < 0.02 for s in successes)
 
 
-@pytest.mark.slow
 def test_demo(capsys):
     assert main(["demo", "--json"]) == 0
     assert json.loads(capsys.readouterr().out.split("\n", 1)[1])["status"] == "SUCCESS"

@@ -1,20 +1,25 @@
 """Behaviour trees: movement primitives and skill templates as py_trees leaves, tree files, the runner.
 
 Leaves are ``py_trees.behaviour.Behaviour`` subclasses that drive the simulated robot through the executor
-given to ``BehaviourTree.setup(executor=...)``; subtrees (:func:`grasp`, :func:`place`,
-:func:`grasp_then_place`) compose them; :func:`load_tree` reads YAML tree files; :class:`Runner` ticks a
-tree in lockstep with the simulation and logs every tick.
+given to ``BehaviourTree.setup(executor=...)``, using the blackboard by declared roles
+(:mod:`besman.trees.base`); subtree idioms (:func:`grasp`, :func:`place`, :func:`grasp_then_place`,
+:mod:`besman.trees.idioms`) compose them; :func:`load_tree` reads YAML tree files (node types in
+:mod:`besman.trees.nodes`); :class:`Runner` ticks a tree in lockstep with the simulation and logs every
+tick; :mod:`besman.trees.tabletop` runs trees on AILA's tabletop.
 """
 
 from besman.trees.conditions import AtPose, ObjectAt, ObjectGrasped
 from besman.trees.files import TreeFileError, describe, dump_tree, load_tree, loads_tree
+from besman.trees.idioms import grasp, grasp_then_place, place
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
-from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanPlace, grasp, grasp_then_place, place
+from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanPlace
 from besman.trees.runner import Runner, RunResult, read_log
-from besman.trees.timing import SimTimeout, Wait
+from besman.trees.tabletop import run_on_tabletop, tabletop_run
+from besman.trees.timing import Deadline, SimTimeout, Wait
 
 __all__ = [
     "AtPose",
+    "Deadline",
     "ExecutePrimitive",
     "Gripper",
     "InstantiateSkillTemplate",
@@ -36,4 +41,6 @@ __all__ = [
     "loads_tree",
     "place",
     "read_log",
+    "run_on_tabletop",
+    "tabletop_run",
 ]

@@ -1,63 +1,96 @@
-"""What besman's leaves share: the executor they drive and their blackboard clients.
+"""What besman's behaviours share: blackboard roles declared once per class, and the executor they drive.
 
-Every besman behaviour is a real ``py_trees.behaviour.Behaviour``. Those that touch the simulation get the
+Every besman behaviour is a real ``py_trees.behaviour.Behaviour``. Blackboard access goes through py_trees'
+own access-controlled clients, namespaces and remapping: a behaviour class declares the *roles* it reads
+and writes once, in :attr:`RoleBehaviour.roles` (``{"primitive": Access.READ}``); an instance's client lives
+in the instance's ``namespace`` (so a role's key is ``/<namespace>/<role>``, py_trees'
+``Blackboard.absolute_name``), and ``remap`` (role -> key) is py_trees' ``remap_to`` for that role. Code reads
+and writes by role (``self.blackboard.get("primitive")``) and never spells a key; :meth:`RoleBehaviour.key`
+and :meth:`RoleBehaviour.role_keys` say where a role lives, for messages and for tree files that rename keys
+(see :mod:`besman.trees.blackboard` for the layout).
+
+Behaviours that touch the simulation (:class:`SimulationBehaviour`) get the
 :class:`~besman.sim.executor.Executor` in ``setup(executor=...)`` (``BehaviourTree.setup(executor=...)``
-passes it to every behaviour), and read the simulated clock from it, so timers run in simulated time.
-
-Blackboard access goes through py_trees' access-controlled clients. A leaf declares the keys it reads and
-writes by *role* ("object_position", "primitive", ...) with defaults in its skill instance's namespace
-(``/<namespace>/<role>``); ``remap`` points a role at any other key, which is how tree files wire subtrees
-together (see :mod:`besman.trees.blackboard` for the layout).
+passes it to every behaviour) and read the simulated clock from it, so timers run in simulated time.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import py_trees
+from py_trees.blackboard import Blackboard
+from py_trees.common import Access
 
 from besman.sim.executor import Executor
+from besman.skills.errors import InputError
 
 
-class SimulationBehaviour(py_trees.behaviour.Behaviour):
-    """A behaviour that needs the executor (given to ``setup``) and may use the blackboard by role."""
+class RoleBehaviour(py_trees.behaviour.Behaviour):
+    """A behaviour that uses the blackboard by role (declared in :attr:`roles`), in a namespace.
+
+    Attributes:
+        roles: role -> access, declared once per class.
+        parameters: the tree-file parameters of the class beyond ``name``, ``namespace`` and ``remap``:
+            parameter -> kind (see :mod:`besman.trees.nodes`); defaults come from ``__init__``.
+    """
+
+    roles: ClassVar[Mapping[str, Access]] = {}
+    parameters: ClassVar[Mapping[str, str]] = {}
 
     def __init__(self, name: str, *, namespace: str = "", remap: Mapping[str, str] | None = None) -> None:
         super().__init__(name=name)
         self.namespace = namespace.strip("/")
         self.remap = dict(remap or {})
-        self.executor: Executor | None = None
-        self.blackboard = self.attach_blackboard_client(name=name)
+        unknown = sorted(set(self.remap) - set(self.roles))
+        if unknown:
+            known = ", ".join(self.roles) or "none"
+            raise InputError(f"{name}: remap names unknown role {unknown[0]!r}; roles: {known}")
+        self.blackboard = self.attach_blackboard_client(name=name, namespace=f"/{self.namespace}")
+
+    def use(self, role: str) -> None:
+        """Registers ``role`` (with its declared access) with this behaviour's client."""
+        self.blackboard.register_key(key=role, access=self.roles[role], remap_to=self.remap.get(role))
 
     def key(self, role: str) -> str:
-        """The blackboard key of a role: remapped, or ``/<namespace>/<role>``."""
-        if role in self.remap:
-            return self.remap[role]
-        return f"/{self.namespace}/{role}" if self.namespace else f"/{role}"
+        """Where ``role`` lives on the blackboard."""
+        return self.role_keys(self.namespace, self.remap, (role,))[role]
 
-    def use(self, role: str, access: py_trees.common.Access) -> None:
-        """Registers the key of ``role`` with this behaviour's client."""
-        self.blackboard.register_key(key=self.key(role), access=access)
+    @classmethod
+    def role_keys(
+        cls, namespace: str, remap: Mapping[str, str], roles: tuple[str, ...] | None = None
+    ) -> dict[str, str]:
+        """The key of each role (default: all declared) for an instance in ``namespace`` with ``remap``."""
+        namespace = "/" + namespace.strip("/")
+        return {
+            role: remap.get(role) or Blackboard.absolute_name(namespace, role)
+            for role in (cls.roles if roles is None else roles)
+        }
 
-    def read(self, role: str):
-        return self.blackboard.get(self.key(role))
 
-    def write(self, role: str, value) -> None:
-        self.blackboard.set(self.key(role), value, overwrite=True)
+class SimulationBehaviour(RoleBehaviour):
+    """A behaviour that needs the executor (given to ``setup``)."""
 
-    def has(self, role: str) -> bool:
-        return self.blackboard.exists(self.key(role))
+    def __init__(self, name: str, *, namespace: str = "", remap: Mapping[str, str] | None = None) -> None:
+        super().__init__(name, namespace=namespace, remap=remap)
+        self.executor: Executor | None = None
 
-    def setup(self, **kwargs) -> None:
-        executor = kwargs.get("executor")
-        if not isinstance(executor, Executor):
-            raise KeyError(
-                f"{self.name}: setup() needs executor=<besman.sim.executor.Executor> "
-                "(BehaviourTree.setup(executor=...))"
-            )
-        self.executor = executor
+    def setup(self, **kwargs: Any) -> None:
+        self.executor = executor_of(self.name, kwargs)
 
     @property
     def time(self) -> float:
         """Simulated time (s)."""
         return self.executor.time
+
+
+def executor_of(name: str, setup_arguments: Mapping[str, Any]) -> Executor:
+    """The executor given to ``setup``; a clear error names the behaviour if there is none."""
+    executor = setup_arguments.get("executor")
+    if not isinstance(executor, Executor):
+        raise KeyError(
+            f"{name}: setup() needs executor=<besman.sim.executor.Executor> "
+            "(BehaviourTree.setup(executor=...))"
+        )
+    return executor

@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import ClassVar
 
 import numpy as np
 from py_trees.common import Access, Status
@@ -20,17 +21,18 @@ from besman.trees.base import SimulationBehaviour
 class ObjectGrasped(SimulationBehaviour):
     """Is ``object`` held by the executor's gripper?"""
 
-    def __init__(
-        self, name: str, *, object: str, namespace: str = "", remap: Mapping[str, str] | None = None
-    ):
-        super().__init__(name, namespace=namespace, remap=remap)
+    parameters: ClassVar = {"object": "str"}
+
+    def __init__(self, name: str, *, object: str) -> None:
+        super().__init__(name)
         self.object = object
 
     def update(self) -> Status:
-        if self.executor.holds(self.object):
+        hand = self.executor.hand
+        if hand.holds(self.object):
             self.feedback_message = f"holding {self.object}"
             return Status.SUCCESS
-        touching = self.executor.touching(self.object)
+        touching = hand.touching(self.object)
         self.feedback_message = (
             f"not holding {self.object} (finger pads touching: {touching[0]}, {touching[1]})"
         )
@@ -39,6 +41,9 @@ class ObjectGrasped(SimulationBehaviour):
 
 class ObjectAt(SimulationBehaviour):
     """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``?"""
+
+    roles: ClassVar = {"target": Access.READ}
+    parameters: ClassVar = {"object": "str", "position": "floats", "tolerance": "float"}
 
     def __init__(
         self,
@@ -54,10 +59,12 @@ class ObjectAt(SimulationBehaviour):
         self.object, self.tolerance = object, tolerance
         self.position = None if position is None else np.asarray(position, dtype=float)
         if self.position is None:
-            self.use("target", Access.READ)
+            self.use("target")
 
     def update(self) -> Status:
-        target = self.position if self.position is not None else np.asarray(self.read("target"), dtype=float)
+        target = (
+            self.position if self.position is not None else np.asarray(self.blackboard.get("target"), float)
+        )
         where = self.executor.world.object_pose(self.object).position[: len(target)]
         distance = float(np.linalg.norm(where - target))
         self.feedback_message = (
@@ -68,6 +75,9 @@ class ObjectAt(SimulationBehaviour):
 
 class AtPose(SimulationBehaviour):
     """Are the executor's joints within ``tolerance`` (rad or m) of ``configuration`` (or its role)?"""
+
+    roles: ClassVar = {"configuration": Access.READ}
+    parameters: ClassVar = {"configuration": "floats", "tolerance": "float"}
 
     def __init__(
         self,
@@ -82,16 +92,19 @@ class AtPose(SimulationBehaviour):
         self.tolerance = tolerance
         self.configuration = None if configuration is None else np.asarray(configuration, dtype=float)
         if self.configuration is None:
-            self.use("configuration", Access.READ)
+            self.use("configuration")
 
     def update(self) -> Status:
         goal = (
-            self.configuration if self.configuration is not None else np.asarray(self.read("configuration"))
+            self.configuration
+            if self.configuration is not None
+            else np.asarray(self.blackboard.get("configuration"), dtype=float)
         )
-        if goal.shape != (self.executor.dofs,):
-            self.feedback_message = f"configuration needs {self.executor.dofs} values, got {goal.shape}"
+        arm = self.executor.arm
+        if goal.shape != (arm.dofs,):
+            self.feedback_message = f"configuration needs {arm.dofs} values, got {goal.shape}"
             return Status.FAILURE
         error = np.abs(self.executor.measured_position() - goal)
-        joint = self.executor.joints[int(error.argmax())]
+        joint = arm.joints[int(error.argmax())]
         self.feedback_message = f"largest joint error {error.max():.3g} ({joint})"
         return Status.SUCCESS if error.max() <= self.tolerance else Status.FAILURE

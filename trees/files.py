@@ -13,14 +13,15 @@ py_trees has no file format of its own. A besman tree file is::
             remap: {/grasp/object_position: /perception/box}   # blackboard keys, renamed inside it
           - GraspThenPlace: {name: move the box, object: box, target: /task/place}
 
-Node types (:data:`NODE_TYPES`): the py_trees composites (``Sequence``, ``Selector``, ``Parallel``) and
-decorators (``Retry``, ``Repeat``, ``Inverter``, ``SuccessIsFailure``, ``FailureIsSuccess``,
-``SuccessIsRunning``, ``Timeout`` in simulated time), besman's leaves (``ExecutePrimitive``,
-``InstantiateSkillTemplate``, ``Gripper``, ``ObjectGrasped``, ``ObjectAt``, ``AtPose``, ``Wait``,
-``PerceiveObject``, ``PlanGrasp``, ``PlanPlace``) and subtrees (``Grasp``, ``Place``, ``GraspThenPlace``).
-Primitives are referenced by the path of their JSON file; templates by ``module:attribute`` (an object
-with ``instantiate(tau)``), or a pool (``pool: module:attribute``, a mapping of names to templates) and a
-``template_name``. Every leaf takes ``namespace`` and ``remap`` (role -> key) for the blackboard.
+Node types (:data:`~besman.trees.nodes.NODE_TYPES`, derived from the classes): the py_trees composites
+(``Sequence``, ``Selector``, ``Parallel``) and decorators (``Retry``, ``Repeat``, ``Inverter``,
+``SuccessIsFailure``, ``FailureIsSuccess``, ``SuccessIsRunning``, ``Timeout`` in simulated time), besman's
+leaves (``ExecutePrimitive``, ``InstantiateSkillTemplate``, ``Gripper``, ``ObjectGrasped``, ``ObjectAt``,
+``AtPose``, ``Wait``, ``PerceiveObject``, ``PlanGrasp``, ``PlanPlace``) and subtree idioms (``Grasp``,
+``Place``, ``GraspThenPlace``). Primitives are referenced by the path of their JSON file; templates by
+``module:attribute`` (an object with ``instantiate(tau)``), or a pool (``pool: module:attribute``, a mapping
+of names to templates) and a ``template_name``. Leaves with blackboard roles take ``namespace`` and
+``remap`` (role -> key).
 
 :func:`load_tree` checks the whole file first - unknown node types, missing or mistyped parameters, missing
 files, cycles of includes - and reports the file, line and path of the first problem (:class:`TreeFileError`).
@@ -30,8 +31,7 @@ files, cycles of includes - and reports the file, line and path of the first pro
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -39,147 +39,15 @@ import py_trees
 import yaml
 
 from besman.skills import MovementPrimitive
-from besman.trees.base import SimulationBehaviour
-from besman.trees.conditions import AtPose, ObjectAt, ObjectGrasped
-from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
-from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanPlace, grasp, grasp_then_place, place
-from besman.trees.timing import SimTimeout, Wait
+from besman.skills.errors import BesmanError
+from besman.trees.nodes import NODE_TYPES, NodeType, Param
+from besman.trees.timing import SimTimeout
 
 FORMAT_VERSION = 1
 
 
-class TreeFileError(ValueError):
+class TreeFileError(BesmanError):
     """A tree file is invalid; the message starts with ``file:line: path:``."""
-
-
-@dataclass(frozen=True)
-class Param:
-    """A node parameter: its kinds (``str``, ``float``, ``int``, ``bool``, ``floats``, ``keys``,
-    ``primitive``, ``template``), whether it is required, and its default."""
-
-    kind: str
-    required: bool = False
-    default: Any = None
-
-
-@dataclass(frozen=True)
-class NodeType:
-    """How to build one node type from its parameters."""
-
-    build: Callable[..., py_trees.behaviour.Behaviour]
-    params: dict[str, Param] = field(default_factory=dict)
-    children: str = "none"  # "none", "one" (decorators: child) or "many" (composites: children)
-
-
-_WIRING = {"namespace": Param("str", default=""), "remap": Param("keys", default={})}
-_POLICIES = {
-    "all": py_trees.common.ParallelPolicy.SuccessOnAll,
-    "one": py_trees.common.ParallelPolicy.SuccessOnOne,
-}
-
-NODE_TYPES: dict[str, NodeType] = {
-    "Sequence": NodeType(
-        lambda name, memory, children: py_trees.composites.Sequence(name, memory, children),
-        {"memory": Param("bool", default=True)},
-        "many",
-    ),
-    "Selector": NodeType(
-        lambda name, memory, children: py_trees.composites.Selector(name, memory, children),
-        {"memory": Param("bool", default=True)},
-        "many",
-    ),
-    "Parallel": NodeType(
-        lambda name, policy, children: py_trees.composites.Parallel(name, _POLICIES[policy](), children),
-        {"policy": Param("str", default="all")},
-        "many",
-    ),
-    "Retry": NodeType(
-        lambda name, attempts, child: py_trees.decorators.Retry(name, child, attempts),
-        {"attempts": Param("int", required=True)},
-        "one",
-    ),
-    "Repeat": NodeType(
-        lambda name, times, child: py_trees.decorators.Repeat(name, child, times),
-        {"times": Param("int", required=True)},
-        "one",
-    ),
-    "Inverter": NodeType(lambda name, child: py_trees.decorators.Inverter(name, child), {}, "one"),
-    "SuccessIsFailure": NodeType(
-        lambda name, child: py_trees.decorators.SuccessIsFailure(name, child), {}, "one"
-    ),
-    "FailureIsSuccess": NodeType(
-        lambda name, child: py_trees.decorators.FailureIsSuccess(name, child), {}, "one"
-    ),
-    "SuccessIsRunning": NodeType(
-        lambda name, child: py_trees.decorators.SuccessIsRunning(name, child), {}, "one"
-    ),
-    "Timeout": NodeType(
-        lambda name, duration, child: SimTimeout(name, child, duration=duration),
-        {"duration": Param("float", required=True)},
-        "one",
-    ),
-    "ExecutePrimitive": NodeType(
-        ExecutePrimitive, {"primitive": Param("primitive"), "timeout": Param("float"), **_WIRING}
-    ),
-    "InstantiateSkillTemplate": NodeType(
-        InstantiateSkillTemplate,
-        {"template": Param("template"), "pool": Param("pool"), "template_name": Param("str"), **_WIRING},
-    ),
-    "Gripper": NodeType(
-        Gripper,
-        {
-            "action": Param("str", required=True),
-            "opening": Param("float"),
-            "expect_grasp": Param("bool", default=False),
-            "object": Param("str"),
-            "timeout": Param("float", default=5.0),
-            **_WIRING,
-        },
-    ),
-    "ObjectGrasped": NodeType(ObjectGrasped, {"object": Param("str", required=True), **_WIRING}),
-    "ObjectAt": NodeType(
-        ObjectAt,
-        {
-            "object": Param("str", required=True),
-            "position": Param("floats"),
-            "tolerance": Param("float", default=0.02),
-            **_WIRING,
-        },
-    ),
-    "AtPose": NodeType(
-        AtPose, {"configuration": Param("floats"), "tolerance": Param("float", default=0.01), **_WIRING}
-    ),
-    "Wait": NodeType(Wait, {"duration": Param("float", required=True)}),
-    "PerceiveObject": NodeType(PerceiveObject, {"object": Param("str", required=True), **_WIRING}),
-    "PlanGrasp": NodeType(PlanGrasp, {"object": Param("str", required=True), **_WIRING}),
-    "PlanPlace": NodeType(PlanPlace, {"object": Param("str", required=True), **_WIRING}),
-    "Grasp": NodeType(
-        grasp,
-        {
-            "object": Param("str", default="box"),
-            "namespace": Param("str", default="grasp"),
-            "attempts": Param("int", default=2),
-            "remap": Param("keys", default={}),
-        },
-    ),
-    "Place": NodeType(
-        place,
-        {
-            "object": Param("str", default="box"),
-            "namespace": Param("str", default="place"),
-            "target": Param("str"),
-            "remap": Param("keys", default={}),
-        },
-    ),
-    "GraspThenPlace": NodeType(
-        grasp_then_place,
-        {
-            "object": Param("str", default="box"),
-            "target": Param("str", default="/task/place"),
-            "attempts": Param("int", default=3),
-        },
-    ),
-}
 
 
 def load_tree(path: str | Path) -> py_trees.behaviour.Behaviour:
@@ -311,7 +179,7 @@ class _Builder:
                 fields[extra], path, f"{here}.{extra}", f"unknown parameter; {type_name} takes {known}"
             )
         if remap and "remap" in spec.params:
-            arguments["remap"] = self._apply_remap(type_name, arguments, remap)
+            arguments["remap"] = self._apply_remap(spec, arguments, remap)
         if remap and isinstance(arguments.get("target"), str):
             arguments["target"] = remap.get(arguments["target"], arguments["target"])
         try:
@@ -326,18 +194,11 @@ class _Builder:
         return behaviour
 
     @staticmethod
-    def _apply_remap(type_name: str, arguments: dict, remap: Mapping[str, str]) -> dict[str, str]:
-        """Include remappings rename keys; a leaf's own remap applies first."""
+    def _apply_remap(spec: NodeType, arguments: dict, remap: Mapping[str, str]) -> dict[str, str]:
+        """Include remappings rename keys: each role's key (its own remap applied first) is renamed."""
         own = dict(arguments.get("remap") or {})
-        namespace = str(arguments.get("namespace", "")).strip("/")
-        roles = _ROLES.get(type_name, ())
-        for role in roles:
-            key = own.get(role, f"/{namespace}/{role}" if namespace else f"/{role}")
-            if key in remap:
-                own[role] = remap[key]
-        for role, key in list(own.items()):
-            own[role] = remap.get(key, key)
-        return own
+        keys = spec.roles.role_keys(str(arguments.get("namespace", "")), own)
+        return own | {role: remap[key] for role, key in keys.items() if key in remap}
 
     def include(self, entries, node, path: Path, where: str, remap: Mapping[str, str], stack):
         extra = set(entries) - {"include", "remap"}
@@ -413,19 +274,6 @@ class _Builder:
             ) from None
 
 
-_ROLES = {
-    "ExecutePrimitive": ("primitive",),
-    "InstantiateSkillTemplate": ("tau", "primitive"),
-    "ObjectAt": ("target",),
-    "AtPose": ("configuration",),
-    "PerceiveObject": ("object_position",),
-    "PlanGrasp": ("object_position", "approach", "descend", "lift"),
-    "PlanPlace": ("target", "transport", "place", "retreat"),
-    "Grasp": ("object_position", "approach", "descend", "lift"),
-    "Place": ("target", "transport", "place", "retreat"),
-}
-
-
 def describe(node: py_trees.behaviour.Behaviour) -> dict:
     """A tree as plain data in the file format (node types with their parameters, nested)."""
     spec = dict(getattr(node, "besman_spec", None) or _spec_of(node))
@@ -486,7 +334,6 @@ def dump_tree(root: py_trees.behaviour.Behaviour) -> str:
 
 __all__ = [
     "NODE_TYPES",
-    "SimulationBehaviour",
     "TreeFileError",
     "describe",
     "dump_tree",

@@ -1,28 +1,30 @@
-"""besman's behaviour-tree leaves: execute primitives, instantiate skill templates, drive the gripper.
+"""besman's action leaves: execute primitives, instantiate skill templates, drive the gripper.
 
 - :class:`ExecutePrimitive` executes a :class:`~besman.skills.MovementPrimitive` (given, or read from the
-  blackboard) through the Ruckig executor: RUNNING while it moves, SUCCESS when the end state is reached,
-  FAILURE with a feedback message on an unreachable pose, a tracking error, a simulation fault or a
-  sim-time timeout. Pre-empted (terminated with INVALID), it brakes the robot to rest within the limits.
-- :class:`InstantiateSkillTemplate` reads tau from the blackboard, asks a skill template (any object with
+  blackboard role ``primitive``) through the Ruckig executor: RUNNING while it moves, SUCCESS when the end
+  state is reached, FAILURE with a feedback message on an unreachable pose, a tracking error, a simulation
+  fault or its sim-time ``timeout``. Pre-empted (terminated with INVALID), it brakes the robot to rest
+  within the limits.
+- :class:`InstantiateSkillTemplate` reads tau (role ``tau``), asks a skill template (any object with
   ``instantiate(tau) -> MovementPrimitive``, given directly or by name from a pool, i.e. any mapping of
-  names to templates) for a primitive and writes it to the blackboard.
+  names to templates) for a primitive and writes it (role ``primitive``).
 - :class:`Gripper` opens or closes the hand; closing with ``expect_grasp`` fails if nothing is held.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
-import py_trees
 from py_trees.common import Access, Status
 
-from besman.sim.executor import FollowReference, GripperMotion, Motion, MotionStatus
 from besman.sim.manipulation import OPEN
+from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
 from besman.skills import MovementPrimitive
-from besman.trees.base import SimulationBehaviour
+from besman.skills.errors import InputError
+from besman.trees.base import RoleBehaviour, SimulationBehaviour
+from besman.trees.timing import Deadline
 
 _STATUS = {
     MotionStatus.RUNNING: Status.RUNNING,
@@ -33,14 +35,17 @@ _STATUS = {
 
 class MotionLeaf(SimulationBehaviour):
     """A leaf that runs one executor motion: starts it in ``initialise``, mirrors its status in ``update``
-    and brakes the robot if it is pre-empted."""
+    and brakes the robot if it is pre-empted or its sim-time ``timeout`` (a :class:`Deadline`) passes."""
 
-    def __init__(self, name: str, *, timeout: float | None = None, **kwargs) -> None:
-        super().__init__(name, **kwargs)
-        self.timeout = timeout
+    def __init__(self, name: str, *, timeout: float | None = None, **wiring) -> None:
+        super().__init__(name, **wiring)
+        self.deadline = Deadline(name, timeout)
         self.motion: Motion | None = None
         self.problem = ""
-        self.deadline = float("inf")
+
+    @property
+    def timeout(self) -> float | None:
+        return self.deadline.duration
 
     def make_motion(self) -> Motion:
         raise NotImplementedError
@@ -51,18 +56,17 @@ class MotionLeaf(SimulationBehaviour):
             self.motion = self.executor.start(self.make_motion())
         except (ValueError, KeyError) as error:
             self.problem = str(error)
-        self.deadline = self.time + self.timeout if self.timeout is not None else float("inf")
+        self.deadline.start(self.time)
 
     def update(self) -> Status:
         if self.problem:
             self.feedback_message = self.problem
             return Status.FAILURE
-        if self.time > self.deadline and self.motion.status is MotionStatus.RUNNING:
-            self.feedback_message = f"timed out after {self.timeout:g} s of simulated time"
+        if self.deadline.expired(self.time) and self.motion.status is MotionStatus.RUNNING:
+            self.feedback_message = self.deadline.message
             return Status.FAILURE
-        status = _STATUS[self.motion.status]
         self.feedback_message = self.motion.message or self.motion.status.value
-        return status
+        return _STATUS[self.motion.status]
 
     def terminate(self, new_status: Status) -> None:
         running = self.motion is not None and self.motion.status is MotionStatus.RUNNING
@@ -80,6 +84,9 @@ class ExecutePrimitive(MotionLeaf):
         namespace, remap: blackboard wiring (see :mod:`besman.trees.base`).
     """
 
+    roles: ClassVar = {"primitive": Access.READ}
+    parameters: ClassVar = {"primitive": "primitive", "timeout": "float"}
+
     def __init__(
         self,
         name: str,
@@ -92,15 +99,15 @@ class ExecutePrimitive(MotionLeaf):
         super().__init__(name, timeout=timeout, namespace=namespace, remap=remap)
         self.primitive = primitive
         if primitive is None:
-            self.use("primitive", Access.READ)
+            self.use("primitive")
 
     def make_motion(self) -> Motion:
-        primitive = self.primitive if self.primitive is not None else self.read("primitive")
+        primitive = self.primitive if self.primitive is not None else self.blackboard.get("primitive")
         if not isinstance(primitive, MovementPrimitive):
-            raise ValueError(
+            raise InputError(
                 f"{self.key('primitive')} holds {type(primitive).__name__}, not a MovementPrimitive"
             )
-        return FollowReference(primitive.name, reference=self.executor.primitive_reference(primitive))
+        return FollowPrimitive(primitive)
 
 
 class Gripper(MotionLeaf):
@@ -110,23 +117,29 @@ class Gripper(MotionLeaf):
     hand.
     """
 
+    parameters: ClassVar = {
+        "action": "str",
+        "opening": "float",
+        "expect_grasp": "bool",
+        "object": "str",
+        "timeout": "float",
+    }
+
     def __init__(
         self,
         name: str,
         *,
-        action: str = "close",
+        action: str,
         opening: float | None = None,
         expect_grasp: bool = False,
         object: str | None = None,
         timeout: float | None = 5.0,
-        namespace: str = "",
-        remap: Mapping[str, str] | None = None,
     ) -> None:
         if action not in ("open", "close"):
-            raise ValueError(f"{name}: action must be 'open' or 'close', got {action!r}")
+            raise InputError(f"{name}: action must be 'open' or 'close', got {action!r}")
         if expect_grasp and (action != "close" or object is None):
-            raise ValueError(f"{name}: expect_grasp needs action='close' and an object")
-        super().__init__(name, timeout=timeout, namespace=namespace, remap=remap)
+            raise InputError(f"{name}: expect_grasp needs action='close' and an object")
+        super().__init__(name, timeout=timeout)
         self.action, self.expect_grasp, self.object = action, expect_grasp, object
         self.opening = (OPEN if action == "open" else 0.0) if opening is None else float(opening)
 
@@ -142,7 +155,7 @@ class SkillTemplate(Protocol):
     def instantiate(self, tau: np.ndarray) -> MovementPrimitive: ...
 
 
-class InstantiateSkillTemplate(py_trees.behaviour.Behaviour):
+class InstantiateSkillTemplate(RoleBehaviour):
     """Reads tau (role ``tau``), instantiates a skill template and writes the primitive (role ``primitive``).
 
     Args:
@@ -152,6 +165,9 @@ class InstantiateSkillTemplate(py_trees.behaviour.Behaviour):
         namespace, remap: blackboard wiring; by default it reads ``/<namespace>/tau`` and writes
             ``/<namespace>/primitive``.
     """
+
+    roles: ClassVar = {"tau": Access.READ, "primitive": Access.WRITE}
+    parameters: ClassVar = {"template": "template", "pool": "pool", "template_name": "str"}
 
     def __init__(
         self,
@@ -163,19 +179,14 @@ class InstantiateSkillTemplate(py_trees.behaviour.Behaviour):
         namespace: str = "",
         remap: Mapping[str, str] | None = None,
     ) -> None:
-        super().__init__(name=name)
+        super().__init__(name, namespace=namespace, remap=remap)
         if (template is None) == (pool is None):
-            raise ValueError(f"{name}: give either a template or a pool and a template_name")
+            raise InputError(f"{name}: give either a template or a pool and a template_name")
         if pool is not None and template_name is None:
-            raise ValueError(f"{name}: a pool needs a template_name")
+            raise InputError(f"{name}: a pool needs a template_name")
         self.template, self.pool, self.template_name = template, pool, template_name
-        self.namespace, self.remap = namespace.strip("/"), dict(remap or {})
-        self.blackboard = self.attach_blackboard_client(name=name)
-        self.blackboard.register_key(key=self.key("tau"), access=Access.READ)
-        self.blackboard.register_key(key=self.key("primitive"), access=Access.WRITE)
-
-    def key(self, role: str) -> str:
-        return SimulationBehaviour.key(self, role)  # the same role -> key rule as the simulation leaves
+        self.use("tau")
+        self.use("primitive")
 
     def update(self) -> Status:
         if self.pool is not None:
@@ -185,15 +196,15 @@ class InstantiateSkillTemplate(py_trees.behaviour.Behaviour):
             template = self.pool[self.template_name]
         else:
             template = self.template
-        if not self.blackboard.exists(self.key("tau")):
+        if not self.blackboard.exists("tau"):
             self.feedback_message = f"no tau at {self.key('tau')}"
             return Status.FAILURE
-        tau = np.asarray(self.blackboard.get(self.key("tau")), dtype=float)
+        tau = np.asarray(self.blackboard.get("tau"), dtype=float)
         try:
             primitive = template.instantiate(tau)
         except ValueError as error:
             self.feedback_message = f"the template rejected tau {tau.tolist()}: {error}"
             return Status.FAILURE
-        self.blackboard.set(self.key("primitive"), primitive, overwrite=True)
+        self.blackboard.set("primitive", primitive, overwrite=True)
         self.feedback_message = f"instantiated {getattr(primitive, 'name', 'a primitive')}"
         return Status.SUCCESS

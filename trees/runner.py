@@ -10,8 +10,8 @@ the blackboard writes of that tick, and a summary of the robot and objects. The 
 - one line per tick ``{"tick", "time", "statuses", "feedback", "blackboard", "robot"}``,
 - a result line ``{"result": {...}}``.
 
-:func:`read_log` reads it back; :func:`statuses` gives the per-tick statuses of a run or a log, and
-:func:`replay` runs a logged run again from its header, so the two can be compared.
+:func:`read_log` reads it back and :func:`statuses` gives the per-tick statuses of a run or a log. The
+runner knows nothing of any particular task: :mod:`besman.trees.tabletop` sets up AILA's tabletop runs.
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ from py_trees.common import Status
 
 from besman.sim.executor import Executor
 from besman.skills import MovementPrimitive
-from besman.skills.storage import write_atomically
+from besman.skills.errors import InputError
+from besman.skills.storage import check_schema_version, write_atomically
 
 SCHEMA_VERSION = 1
 
@@ -97,7 +98,7 @@ class Runner:
     ) -> None:
         cycles = 1.0 / (rate * executor.config.control_period)
         if abs(cycles - round(cycles)) > 1e-9 or round(cycles) < 1:
-            raise ValueError(
+            raise InputError(
                 f"rate {rate} Hz must divide the control rate {1 / executor.config.control_period:g} Hz"
             )
         self.root, self.executor, self.rate, self.max_sim_time = root, executor, rate, max_sim_time
@@ -108,6 +109,11 @@ class Runner:
         self.record_seconds: list[float] = []  # wall time of recording each tick
         self.tree = py_trees.trees.BehaviourTree(root)
         self.paths = node_paths(root)
+        self.nodes = [(node, self.paths[node.id]) for node in root.iterate()]  # the tree's shape is fixed
+        model = executor.world.model  # where each free object's position sits in qpos
+        self._object_addresses = {
+            name: int(model.jnt_qposadr[model.joint(name).id]) for name in executor.world.objects
+        }
 
     def run(self) -> RunResult:
         """Runs to the end and returns the result (the records are in ``self.records``)."""
@@ -128,8 +134,7 @@ class Runner:
             if self.executor.time - start_sim >= self.max_sim_time:
                 self.root.stop(Status.INVALID)
                 break
-            for _ in range(self.cycles_per_tick):
-                self.executor.tick()
+            self.executor.advance(self.cycles_per_tick)
         py_trees.blackboard.Blackboard.disable_activity_stream()
         failed, message = self._outcome(status)
         return RunResult(
@@ -153,9 +158,8 @@ class Runner:
 
     def _record(self) -> dict:
         statuses, feedback = {}, {}
-        for node in self.root.iterate():
+        for node, path in self.nodes:
             if node.status is not Status.INVALID:
-                path = self.paths[node.id]
                 statuses[path] = node.status.value
                 if node.feedback_message:
                     feedback[path] = node.feedback_message
@@ -171,12 +175,13 @@ class Runner:
             if item.activity_type in ("INITIALISED", "WRITE")
         ]
         stream.clear()
-        world = self.executor.world
+        world, gripper = self.executor.world, self.executor.gripper_opening
         robot = {
-            "joints": np.round(self.executor.measured_position(), 5).tolist(),
-            "gripper": round(float(self.executor.gripper_state[0]), 5) if self.executor.gripper else None,
+            "joints": np.round(self.executor.arm.measured(), 5).tolist(),
+            "gripper": None if gripper is None else round(gripper, 5),
             "objects": {
-                name: np.round(world.object_pose(name).position, 5).tolist() for name in world.objects
+                name: np.round(world.data.qpos[address : address + 3], 5).tolist()
+                for name, address in self._object_addresses.items()
             },
         }
         return {
@@ -204,116 +209,22 @@ def read_log(path: str | Path) -> tuple[dict, list[dict], dict]:
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ValueError(f"{path}: no such file") from None
+        raise InputError(f"{path}: no such file") from None
     lines = [line for line in text.splitlines() if line.strip()]
     records = []
     for number, line in enumerate(lines, 1):
         try:
             records.append(json.loads(line))
         except json.JSONDecodeError as error:
-            raise ValueError(f"{path}:{number}: not JSON ({error})") from None
+            raise InputError(f"{path}:{number}: not JSON ({error})") from None
     if not records or records[0].get("kind") != "besman-run-log":
-        raise ValueError(f"{path}:1: not a besman run log")
-    if records[0].get("schema_version") != SCHEMA_VERSION:
-        raise ValueError(f"{path}:1: schema_version {records[0].get('schema_version')!r} is not supported")
+        raise InputError(f"{path}:1: not a besman run log")
+    check_schema_version(records[0], SCHEMA_VERSION, f"{path}:1")
     if "result" not in records[-1]:
-        raise ValueError(f"{path}:{len(lines)}: the log ends without a result (the run did not finish)")
+        raise InputError(f"{path}:{len(lines)}: the log ends without a result (the run did not finish)")
     return records[0], records[1:-1], records[-1]["result"]
 
 
 def statuses(records: list[dict]) -> Iterator[dict[str, str]]:
     """The per-tick node statuses of a run (``Runner.records``) or a log (``read_log(...)[1]``)."""
     return (record["statuses"] for record in records)
-
-
-def pick_place_settings(values: dict[str, tuple[float, ...]], seed: int | None) -> dict[str, list[float]]:
-    """The object and place positions of a tabletop run: given values (checked against the pick-and-place
-    task's bounds) or, where missing, drawn uniformly from those bounds with ``seed``."""
-    from besman.sim.pick_place import PICK_PLACE_BOUNDS
-
-    bounds = PICK_PLACE_BOUNDS
-    rng = np.random.default_rng(seed)
-    draw = rng.uniform(bounds.low, bounds.high)
-    settings = {name: [float(v) for v in value] for name, value in values.items()}
-    for name, columns in (("object", slice(0, 2)), ("place", slice(2, 4))):
-        if name in settings:
-            if len(settings[name]) != 2:
-                raise ValueError(f"--set {name}=x,y needs two numbers, got {settings[name]}")
-            tau = draw.copy()
-            tau[columns] = settings[name]
-            bounds.check(tau)  # a value outside the box is rejected with its name
-        else:
-            settings[name] = draw[columns].tolist()
-    return settings
-
-
-def tabletop_run(
-    tree: str | Path | py_trees.behaviour.Behaviour,
-    values: dict[str, tuple[float, ...]] | None = None,
-    *,
-    seed: int | None = None,
-    max_sim_time: float = 120.0,
-) -> tuple[Runner, dict[str, list[float]]]:
-    """A runner for a tree (a file, checked first, or a root behaviour) on AILA's tabletop, ready to run:
-    the box stands at ``object`` and ``/task/<name>`` holds every value (``place`` is where the box
-    should go)."""
-    from besman.sim.executor import Executor
-    from besman.sim.world import TABLE, tabletop_world
-    from besman.trees.blackboard import set_task_values
-    from besman.trees.files import describe, load_tree
-
-    settings = pick_place_settings(dict(values or {}), seed)
-    from_file = not isinstance(tree, py_trees.behaviour.Behaviour)
-    root = load_tree(tree) if from_file else tree  # every file problem is reported before anything runs
-    py_trees.blackboard.Blackboard.clear()
-    world = tabletop_world()
-    world.place_on("box", TABLE.name, *settings["object"])
-    set_task_values(settings)
-    run_info = {
-        "tree": str(Path(tree).resolve()) if from_file else describe(root),
-        "settings": settings,
-        "seed": seed,
-        "max_sim_time": max_sim_time,
-    }
-    return Runner(root, Executor(world), max_sim_time=max_sim_time, run_info=run_info), settings
-
-
-def run_on_tabletop(
-    tree: str | Path | py_trees.behaviour.Behaviour,
-    values: dict[str, tuple[float, ...]] | None = None,
-    *,
-    seed: int | None = None,
-    log: str | Path | None = None,
-    max_sim_time: float = 120.0,
-) -> dict:
-    """Runs a tree on AILA's tabletop (:func:`tabletop_run`) and returns the summary: status, placement error
-    measured in the simulation, simulated and wall time, ticks, failed node and message."""
-    runner, settings = tabletop_run(tree, values, seed=seed, max_sim_time=max_sim_time)
-    result = runner.run()
-    box = runner.executor.world.object_pose("box").position
-    if log is not None:
-        runner.write_log(log, result)
-    return {
-        "status": result.status,
-        "placement_error_m": float(np.linalg.norm(box[:2] - np.asarray(settings["place"]))),
-        "sim_time_s": result.sim_time_s,
-        "wall_time_s": result.wall_time_s,
-        "ticks": result.ticks,
-        "failed_node": result.failed_node,
-        "message": result.message,
-    }
-
-
-def replay(path: str | Path) -> list[dict[str, str]]:
-    """Runs a logged run again from its header; returns its per-tick statuses (to compare with the log's)."""
-    from besman.trees.files import loads_tree
-
-    header, _, _ = read_log(path)
-    run = header["run"]
-    settings = {name: tuple(value) for name, value in run["settings"].items()}
-    tree = run["tree"]
-    if isinstance(tree, dict):  # a tree built in code, logged in the file format
-        tree = loads_tree(json.dumps({"besman_tree": 1, "root": tree}))
-    runner, _ = tabletop_run(tree, settings, seed=run.get("seed"), max_sim_time=run["max_sim_time"])
-    runner.run()
-    return list(statuses(runner.records))

@@ -1,5 +1,8 @@
-"""Waiting and time limits in simulated time (py_trees' own Timer and Timeout use the wall clock).
+"""Simulated time in trees: one deadline mechanism for time limits, and waiting (py_trees' own Timer and
+Timeout use the wall clock, which means nothing to a simulation that runs faster than real time).
 
+- :class:`Deadline` - a time limit restarted whenever its behaviour starts; the leaves' ``timeout``
+  parameter and the :class:`SimTimeout` decorator both use it.
 - :class:`Wait` - RUNNING for ``duration`` simulated seconds, then SUCCESS.
 - :class:`SimTimeout` - a decorator that fails its child (stopping it) when it runs longer than
   ``duration`` simulated seconds.
@@ -7,20 +10,46 @@
 
 from __future__ import annotations
 
+import math
+from typing import Any, ClassVar
+
 import py_trees
 from py_trees.common import Status
 
 from besman.sim.executor import Executor
-from besman.trees.base import SimulationBehaviour
+from besman.skills.errors import InputError
+from besman.trees.base import SimulationBehaviour, executor_of
+
+
+class Deadline:
+    """``duration`` simulated seconds from each :meth:`start` (None: no limit)."""
+
+    def __init__(self, owner: str, duration: float | None) -> None:
+        if duration is not None and not (isinstance(duration, int | float) and 0 < duration < math.inf):
+            raise InputError(f"{owner}: a time limit must be a positive number of seconds, got {duration!r}")
+        self.duration = None if duration is None else float(duration)
+        self.finish = math.inf
+
+    def start(self, now: float) -> None:
+        self.finish = math.inf if self.duration is None else now + self.duration
+
+    def expired(self, now: float) -> bool:
+        return now > self.finish
+
+    @property
+    def message(self) -> str:
+        return f"timed out after {self.duration:g} s of simulated time"
 
 
 class Wait(SimulationBehaviour):
     """Succeeds ``duration`` simulated seconds after it starts."""
 
+    parameters: ClassVar = {"duration": "float"}
+
     def __init__(self, name: str, *, duration: float) -> None:
         super().__init__(name)
-        if not duration >= 0:
-            raise ValueError(f"{name}: duration must be >= 0, got {duration!r}")
+        if not (isinstance(duration, int | float) and 0 <= duration < math.inf):
+            raise InputError(f"{name}: duration must be a number >= 0, got {duration!r}")
         self.duration = float(duration)
         self.finish = 0.0
 
@@ -38,21 +67,22 @@ class SimTimeout(py_trees.decorators.Decorator):
 
     def __init__(self, name: str, child: py_trees.behaviour.Behaviour, *, duration: float) -> None:
         super().__init__(name=name, child=child)
-        if not duration > 0:
-            raise ValueError(f"{name}: duration must be > 0, got {duration!r}")
-        self.duration = float(duration)
+        self.deadline = Deadline(name, duration)
         self.executor: Executor | None = None
-        self.finish = 0.0
 
-    def setup(self, **kwargs) -> None:
-        SimulationBehaviour.setup(self, **kwargs)
+    @property
+    def duration(self) -> float:
+        return self.deadline.duration
+
+    def setup(self, **kwargs: Any) -> None:
+        self.executor = executor_of(self.name, kwargs)
 
     def initialise(self) -> None:
-        self.finish = self.executor.time + self.duration
+        self.deadline.start(self.executor.time)
 
     def update(self) -> Status:
-        if self.executor.time > self.finish and self.decorated.status is Status.RUNNING:
-            self.feedback_message = f"timed out after {self.duration:g} s of simulated time"
+        if self.deadline.expired(self.executor.time) and self.decorated.status is Status.RUNNING:
+            self.feedback_message = self.deadline.message
             self.decorated.stop(Status.INVALID)
             return Status.FAILURE
         self.feedback_message = self.decorated.feedback_message

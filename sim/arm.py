@@ -1,0 +1,145 @@
+"""The kinematic model of the joints an executor drives: what planning and execution both ask about.
+
+An :class:`Arm` is a set of joint groups of a :class:`~besman.sim.world.World`'s robot (AILA's waist and
+right arm, say) with one end-effector site: their joints, ranges and motion limits, and the queries on
+configurations of those joints with everything else as it stands in the world - forward kinematics,
+inverse kinematics and collisions. Queries run in a scratch ``MjData`` of their own, so planning never
+touches the simulation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+import besman.robots as robots
+from besman.sim.world import World
+
+
+class Arm:
+    """Joints, limits and kinematic queries of ``groups`` of a world's robot; see the module documentation.
+
+    Attributes:
+        joints: joint names, in the groups' order (every array below follows it).
+        qpos_indices, dof_indices, actuator_indices: where the joints sit in qpos, qvel and ctrl.
+        lower, upper: joint ranges (rad or m).
+        max_velocity, max_acceleration, max_jerk: motion limits from the robot description.
+        site: the end-effector site (the last group's).
+    """
+
+    def __init__(self, world: World, groups: Sequence[str] = ("waist", "right_arm")) -> None:
+        self.world = world
+        self.groups = tuple(groups)
+        robot = world.robot
+        members = [robot.group(name) for name in self.groups]
+        self.joints = tuple(j for g in members for j in g.joints)
+        self.qpos_indices = np.concatenate([g.qpos_indices for g in members])
+        self.dof_indices = np.concatenate([g.dof_indices for g in members])
+        self.actuator_indices = np.concatenate([g.actuator_indices for g in members])
+        self.lower = np.concatenate([g.lower for g in members])
+        self.upper = np.concatenate([g.upper for g in members])
+        self.max_velocity = np.concatenate([g.velocity for g in members])
+        self.max_acceleration = np.concatenate([g.acceleration for g in members])
+        self.max_jerk = np.concatenate([g.jerk for g in members])
+        self.site = members[-1].site
+        model = world.model
+        self._site_id = robots.kinematics.site_id(model, self.site)
+        self._scratch = mujoco.MjData(model)
+        root = model.body_rootid[model.jnt_bodyid[model.joint(self.joints[0]).id]]
+        self._robot_body = model.body_rootid == root  # per body: part of the robot
+
+    @property
+    def dofs(self) -> int:
+        return len(self.joints)
+
+    @property
+    def name(self) -> str:
+        """The robot and groups, as primitives record them ("aila", "waist+right_arm")."""
+        return "+".join(self.groups)
+
+    def full_qpos(self, joint_positions: np.ndarray) -> np.ndarray:
+        """The world's current qpos with the arm's joints set to ``joint_positions``."""
+        qpos = self.world.data.qpos.copy()
+        qpos[self.qpos_indices] = joint_positions
+        return qpos
+
+    def measured(self) -> np.ndarray:
+        """The arm's joint positions in the simulation now."""
+        return self.world.data.qpos[self.qpos_indices]
+
+    # -- forward kinematics --------------------------------------------------------------------------------
+
+    def _pose_scratch(self, joint_positions: np.ndarray) -> mujoco.MjData:
+        scratch = self._scratch
+        scratch.qpos[:] = self.world.data.qpos
+        scratch.qpos[self.qpos_indices] = joint_positions
+        mujoco.mj_kinematics(self.world.model, scratch)
+        return scratch
+
+    def site_pose(self, joint_positions: np.ndarray) -> robots.Pose:
+        """The world pose of the site at ``joint_positions``."""
+        scratch = self._pose_scratch(joint_positions)
+        return robots.site_pose(self.world.model, scratch, self._site_id)
+
+    def site_path(self, joint_positions: np.ndarray) -> np.ndarray:
+        """Site positions (K, 3) along configurations (K, dofs)."""
+        return np.array([self._pose_scratch(q).site_xpos[self._site_id] for q in joint_positions])
+
+    # -- inverse kinematics --------------------------------------------------------------------------------
+
+    def solve_ik(
+        self,
+        position,
+        orientation,
+        *,
+        initial: np.ndarray,
+        restarts: int = 0,
+        tolerances: tuple[float, float] = (1e-4, 1e-3),
+    ) -> robots.IKResult:
+        """Inverse kinematics of the site over the arm's joints started from ``initial``, the heavy slow
+        joints taking a small share (weights = acceleration limits)."""
+        return robots.solve_ik(
+            self.world.robot,
+            self.groups,
+            position,
+            orientation,
+            site=self.site,
+            initial_qpos=self.full_qpos(initial),
+            restarts=restarts,
+            position_tolerance=tolerances[0],
+            orientation_tolerance=tolerances[1],
+            joint_weights=self.max_acceleration,
+            data=self._scratch,
+        )
+
+    # -- collisions ----------------------------------------------------------------------------------------
+
+    def collisions(self, joint_positions: np.ndarray, allowed: Sequence[str] = ()) -> list[str]:
+        """Contacts the robot would have with the arm at ``joint_positions`` and everything else as it is
+        now: "body1/body2" for each pair, except pairs with a body named in ``allowed``."""
+        model, scratch = self.world.model, self._pose_scratch(joint_positions)
+        mujoco.mj_collision(model, scratch)
+        contacts = scratch.contact
+        bodies = model.geom_bodyid[contacts.geom]  # (ncon, 2)
+        excused = np.isin(bodies, [model.body(name).id for name in allowed]).any(axis=1)
+        found = (contacts.dist < 0) & self._robot_body[bodies].any(axis=1) & ~excused
+        return ["/".join(model.body(b).name for b in pair) for pair in bodies[found]]
+
+    # -- limits --------------------------------------------------------------------------------------------
+
+    def slowdown(
+        self, positions: np.ndarray, velocities: np.ndarray, accelerations: np.ndarray, period: float
+    ):
+        """How much slower a joint trajectory sampled every ``period`` must run to respect every limit (1 if
+        it already does): velocity scales with 1/f, acceleration 1/f^2, jerk 1/f^3."""
+        jerk = np.abs(np.diff(accelerations, axis=0)).max(axis=0) / period
+        return float(
+            max(
+                1.0,
+                (np.abs(velocities).max(axis=0) / self.max_velocity).max(),
+                np.sqrt(np.abs(accelerations).max(axis=0) / self.max_acceleration).max(),
+                np.cbrt(jerk / self.max_jerk).max(),
+            )
+        )

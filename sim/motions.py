@@ -1,0 +1,296 @@
+"""Motions: what an executor does, cycle by cycle, and how each decides it is done.
+
+A motion is started by :meth:`Executor.start <besman.sim.executor.Executor.start>` (which calls its
+:meth:`~Motion.begin`). The executor then runs control cycles in chunks (:class:`Chunk`): the motion
+commands the executor's Ruckig streams one cycle at a time (:meth:`~Motion.command`; commands never depend
+on measurements, so a whole chunk is known ahead), the physics runs the chunk, and the motion judges the
+chunk's cycles in order (:meth:`~Motion.judge`), ending at the first cycle that decides it. Each kind
+carries its own logic:
+
+- :class:`FollowReference` - track a joint reference (positions, velocities, accelerations at the control
+  rate), aiming a few cycles ahead, then hold its last state until the robot arrives;
+  :class:`FollowPrimitive` makes that reference from a movement primitive when it starts, in the current
+  commanded state (:mod:`besman.sim.references`).
+- :class:`MoveTo` - a time-optimal jerk-limited move to a joint configuration (Ruckig's own trajectory).
+- :class:`GripperMotion` - open or close the gripper while the arm holds still; closing can require a grasp.
+- :class:`Stop` - brake to rest within the limits (what pre-emption does).
+
+An arm motion fails when the robot cannot follow its command (blocked or in collision), when the command
+cannot keep up with a reference (too fast for the limits), or when the robot does not arrive in time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import TYPE_CHECKING
+
+import numpy as np
+import ruckig
+
+from besman.sim.references import joint_reference
+from besman.skills import MovementPrimitive, Trajectory
+from besman.skills.errors import InputError
+
+if TYPE_CHECKING:
+    from besman.sim.executor import Executor
+
+AT_REST = 1e-6  # commanded speed and acceleration below which a command is at rest
+AT_GOAL = 1e-6  # commanded distance (rad or m) at which a command is at its goal
+
+
+class MotionStatus(Enum):
+    RUNNING = "running"
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """What happened in consecutive control cycles of one motion, one row per cycle.
+
+    Attributes:
+        first: the motion's cycle number of the first row (1 for the motion's first cycle).
+        commanded, commanded_velocity, commanded_acceleration: the arm's commanded state after each cycle.
+        measured: the arm's joint positions after each cycle's physics.
+        gripper: the commanded gripper opening and its velocity after each cycle (columns), if any.
+        finger_speed: the fingers' largest measured speed after each cycle, if there is a gripper.
+    """
+
+    first: int
+    commanded: np.ndarray
+    commanded_velocity: np.ndarray
+    commanded_acceleration: np.ndarray
+    measured: np.ndarray
+    gripper: np.ndarray | None
+    finger_speed: np.ndarray | None
+
+    @property
+    def at_rest(self) -> np.ndarray:
+        return (np.abs(self.commanded_velocity).max(axis=1) < AT_REST) & (
+            np.abs(self.commanded_acceleration).max(axis=1) < AT_REST
+        )
+
+
+@dataclass
+class Motion:
+    """Base of motions: a name for logs and messages, a status, and a message when it ends."""
+
+    name: str
+    status: MotionStatus = field(default=MotionStatus.RUNNING, init=False)
+    message: str = field(default="", init=False)
+    cycles: int = field(default=0, init=False)  # cycles commanded so far
+    settled: int = field(default=0, init=False)  # consecutive cycles at the goal
+    waited: int = field(default=0, init=False)  # cycles the command has been at the goal
+
+    def finish(self, status: MotionStatus, message: str = "") -> MotionStatus:
+        self.status, self.message = status, message
+        return status
+
+    def begin(self, executor: Executor) -> None:
+        """Prepares the motion when it starts (checks, conversions); may finish it as FAILED."""
+
+    def command(self, executor: Executor) -> ruckig.Result:
+        """Advances the commanded state by cycle ``self.cycles`` (already counted)."""
+        raise NotImplementedError
+
+    def judge(self, executor: Executor, chunk: Chunk) -> None:
+        """Goes through the chunk's cycles in order and ends the motion at the first that decides it."""
+        raise NotImplementedError
+
+    # -- shared judgements, vectorised over a chunk --------------------------------------------------------
+
+    def blocked_at(self, executor: Executor, chunk: Chunk) -> int | None:
+        """The first row where a joint is further behind its command than ``following_tolerance``."""
+        behind = np.abs(chunk.measured - chunk.commanded)
+        rows = np.flatnonzero(behind.max(axis=1) > executor.config.following_tolerance)
+        return int(rows[0]) if rows.size else None
+
+    def fail_blocked(self, executor: Executor, chunk: Chunk, row: int) -> None:
+        behind = np.abs(chunk.measured[row] - chunk.commanded[row])
+        joint = executor.arm.joints[int(behind.argmax())]
+        self.finish(
+            MotionStatus.FAILED,
+            f"joint {joint} cannot follow its command ({behind.max():.3g} behind; blocked or in collision)",
+        )
+
+    def settle(
+        self, executor: Executor, chunk: Chunk, goal: np.ndarray, done: np.ndarray, until: int | None
+    ) -> None:
+        """Cycle by cycle up to row ``until`` (None: all), where a cycle before ``until`` is fine otherwise:
+        succeeds once the command is at ``goal`` (and ``done``) and the robot has stayed within
+        ``arrival_tolerance`` of it for ``settle_cycles``; fails if it does not arrive in time."""
+        config = executor.config
+        commanded_there = done & (np.abs(chunk.commanded - goal).max(axis=1) <= AT_GOAL)
+        error = np.abs(chunk.measured - goal)
+        arrived = commanded_there & (error.max(axis=1) <= config.arrival_tolerance)
+        rows = len(chunk.commanded) if until is None else until
+        for row in range(rows):
+            self.settled = self.settled + 1 if arrived[row] else 0
+            if self.settled >= config.settle_cycles:
+                self.finish(MotionStatus.SUCCEEDED, "reached")
+                return
+            if commanded_there[row]:
+                self.waited += 1
+                if self.waited * config.control_period > config.arrival_timeout:
+                    joint = executor.arm.joints[int(error[row].argmax())]
+                    self.finish(
+                        MotionStatus.FAILED,
+                        f"joint {joint} stays {error[row].max():.3g} from its goal (blocked or in contact)",
+                    )
+                    return
+
+
+def _first(*rows: int | None) -> int | None:
+    """The earliest of some rows (None where nothing happened)."""
+    found = [row for row in rows if row is not None]
+    return min(found) if found else None
+
+
+@dataclass
+class FollowReference(Motion):
+    """Track ``reference`` (positions/velocities/accelerations of the executor's joints, sampled at the
+    control period), then hold its last state until the robot arrives."""
+
+    reference: Trajectory = None  # type: ignore[assignment]
+    _targets: list = field(default_factory=list, init=False, repr=False)
+
+    def begin(self, executor: Executor) -> None:
+        arm, reference = executor.arm, self.reference
+        if reference.positions.shape[1:] != (arm.dofs,):
+            raise InputError(f"reference for {arm.dofs} joints expected, got {reference.positions.shape}")
+        # Commands are clipped to the ranges; a reference that goes clearly beyond them is wrong.
+        excess = np.maximum(arm.lower - reference.positions, reference.positions - arm.upper).max(axis=0)
+        if excess.max() > executor.config.range_tolerance:
+            joint = arm.joints[int(excess.argmax())]
+            self.finish(
+                MotionStatus.FAILED, f"the reference leaves the range of {joint} by {excess.max():.3g}"
+            )
+        positions = np.clip(reference.positions, arm.lower, arm.upper)
+        self.reference = Trajectory(reference.times, positions, reference.velocities, reference.accelerations)
+        # Every sample made a feasible Ruckig target once, as plain lists: the per-cycle work is a lookup.
+        feasible = executor.stream.feasible(positions, reference.velocities, reference.accelerations)
+        self._targets = list(zip(*(array.tolist() for array in feasible), strict=True))
+
+    def command(self, executor: Executor) -> ruckig.Result:
+        # Aim at the reference a few cycles ahead, to be reached exactly then: Ruckig plans a smooth
+        # approach of that state instead of a bang-bang chase of the next sample.
+        last = len(self._targets) - 1
+        if self.cycles < last:
+            k = min(self.cycles + executor.config.lookahead_cycles, last)
+            duration = (k - self.cycles + 1) * executor.config.control_period
+            return executor.stream.track_feasible(
+                *self._targets[k], synchronize=False, minimum_duration=duration
+            )
+        # At or past its end, come to rest at the reference's last position.
+        return executor.stream.track(self.reference.positions[-1])
+
+    def judge(self, executor: Executor, chunk: Chunk) -> None:
+        positions = self.reference.positions
+        last = len(positions) - 1
+        cycles = np.arange(chunk.first, chunk.first + len(chunk.commanded))
+        lag = np.abs(chunk.commanded - positions[np.minimum(cycles, last)])
+        lagging = np.flatnonzero((cycles < last) & (lag.max(axis=1) > executor.config.lag_tolerance))
+        blocked = self.blocked_at(executor, chunk)
+        lag_row = int(lagging[0]) if lagging.size else None
+        failure = _first(blocked, lag_row)
+        self.settle(executor, chunk, positions[last], cycles >= last, until=failure)
+        if self.status is not MotionStatus.RUNNING or failure is None:
+            return
+        if failure == blocked:
+            self.fail_blocked(executor, chunk, failure)
+        else:
+            joint = executor.arm.joints[int(lag[failure].argmax())]
+            self.finish(
+                MotionStatus.FAILED,
+                f"the reference is faster than the limits allow ({joint} lags {lag[failure].max():.3g})",
+            )
+
+
+class FollowPrimitive(FollowReference):
+    """Execute ``primitive``: its joint reference, made when the motion starts in the commanded state.
+
+    Starting raises an :class:`~besman.skills.errors.InputError` for a primitive the arm cannot execute (an
+    unreachable Cartesian pose, a joint primitive of the wrong size)."""
+
+    def __init__(self, primitive: MovementPrimitive, name: str | None = None) -> None:
+        super().__init__(name or primitive.name)
+        self.primitive = primitive
+
+    def begin(self, executor: Executor) -> None:
+        self.reference = joint_reference(
+            executor.arm, self.primitive, executor.stream.state(), executor.reference_settings
+        )
+        super().begin(executor)
+
+
+@dataclass
+class MoveTo(Motion):
+    """Go to ``target`` (joint positions of the executor's joints) and stop there."""
+
+    target: np.ndarray = None  # type: ignore[assignment]
+
+    def begin(self, executor: Executor) -> None:
+        self.target = np.clip(np.asarray(self.target, dtype=float), executor.arm.lower, executor.arm.upper)
+
+    def command(self, executor: Executor) -> ruckig.Result:
+        return executor.stream.track(self.target)
+
+    def judge(self, executor: Executor, chunk: Chunk) -> None:
+        blocked = self.blocked_at(executor, chunk)
+        self.settle(executor, chunk, self.target, chunk.at_rest, until=blocked)
+        if self.status is MotionStatus.RUNNING and blocked is not None:
+            self.fail_blocked(executor, chunk, blocked)
+
+
+@dataclass
+class GripperMotion(Motion):
+    """Drive the gripper to ``opening`` (m per finger) while the arm holds still; with ``expect_grasp`` it
+    fails unless it ends up holding ``grasp_object``."""
+
+    opening: float = 0.0
+    expect_grasp: bool = False
+    grasp_object: str | None = None
+    _target: tuple = field(default=(), init=False, repr=False)
+
+    def begin(self, executor: Executor) -> None:
+        if executor.hand is None:
+            raise InputError("the executor has no gripper")
+        self._target = tuple(
+            a.tolist() for a in executor.gripper_stream.feasible([self.opening], [0.0], [0.0])
+        )
+
+    def command(self, executor: Executor) -> ruckig.Result:
+        result = executor.stream.brake()  # the arm holds still (braking first if it was moving)
+        executor.gripper_stream.track_feasible(*self._target)
+        return result
+
+    def judge(self, executor: Executor, chunk: Chunk) -> None:
+        blocked = self.blocked_at(executor, chunk)
+        opening, speed = chunk.gripper[:, 0], chunk.gripper[:, 1]
+        closed_on_limit = self.opening <= executor.gripper_stream.lower[0] + 1e-9
+        commanded_done = (np.abs(opening - self.opening) < 1e-9) | (closed_on_limit & (np.abs(speed) < 1e-9))
+        still = commanded_done & (chunk.finger_speed <= 1e-3)
+        for row in range(len(chunk.commanded) if blocked is None else blocked):
+            self.settled = self.settled + 1 if still[row] else 0
+            if self.settled >= executor.config.settle_cycles:
+                # Judged on the simulation as it is now (at most a chunk later): the fingers have settled.
+                if self.expect_grasp and not executor.hand.holds(self.grasp_object):
+                    self.finish(MotionStatus.FAILED, "the fingers closed on nothing")
+                else:
+                    self.finish(MotionStatus.SUCCEEDED, "fingers settled")
+                return
+        if blocked is not None:
+            self.fail_blocked(executor, chunk, blocked)
+
+
+@dataclass
+class Stop(Motion):
+    """Brake to rest within the limits."""
+
+    def command(self, executor: Executor) -> ruckig.Result:
+        return executor.stream.brake()
+
+    def judge(self, executor: Executor, chunk: Chunk) -> None:
+        if chunk.at_rest.any():
+            self.finish(MotionStatus.SUCCEEDED, "stopped")

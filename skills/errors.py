@@ -1,0 +1,13 @@
+"""The project's errors: one base class, so callers can catch everything besman raises for bad input.
+
+Every error besman raises for bad input or an impossible request is a :class:`BesmanError`; it is a
+``ValueError``, so code that catches ``ValueError`` keeps working.
+"""
+
+
+class BesmanError(ValueError):
+    """Bad input or an impossible request; the message names the file, field or value and says why."""
+
+
+class InputError(BesmanError):
+    """An argument is malformed or out of range (the message names it)."""

@@ -1,0 +1,160 @@
+"""Subtree idioms for manipulation: grasp, place, and grasp-then-place, composed hierarchically.
+
+Each subtree keeps its blackboard in one skill namespace; its planning leaf writes the primitives that its
+:class:`~besman.trees.leaves.ExecutePrimitive` leaves read, wired by the planning leaf's own role keys.
+
+- :func:`grasp` - perceive, plan, open, approach, descend, close on the object (a grasp is required), lift,
+  check the grasp; retried from fresh perception when it fails.
+- :func:`place` - plan, transport and set down while a guard checks that the object stays in the hand, open,
+  retreat, check that the object is at the target.
+- :func:`grasp_then_place` - the two, retried: if the object slips out of the hand, the retry finds it not
+  grasped and grasps it again where it now lies.
+
+The factories record how they were called (``besman_spec``), so tree files can name them as nodes
+(``Grasp``, ``Place``, ``GraspThenPlace``) and trees built in code can be written back as files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import py_trees
+
+from besman.sim.manipulation import PickPlacePlan
+from besman.skills.errors import InputError
+from besman.trees.base import RoleBehaviour
+from besman.trees.conditions import ObjectAt, ObjectGrasped
+from besman.trees.leaves import ExecutePrimitive, Gripper
+from besman.trees.manipulation import DEFAULT_PLAN, PerceiveObject, PlanGrasp, PlanPlace
+
+
+def grasp(
+    name: str = "grasp",
+    *,
+    object: str = "box",
+    namespace: str = "grasp",
+    attempts: int = 2,
+    plan: PickPlacePlan = DEFAULT_PLAN,
+    remap: Mapping[str, str] | None = None,
+) -> py_trees.behaviour.Behaviour:
+    """A subtree that grasps ``object`` and lifts it; up to ``attempts`` tries from fresh perception."""
+    remap = _checked(name, remap or {}, PlanGrasp)
+    primitives = PlanGrasp.role_keys(namespace, remap)
+    steps = py_trees.composites.Sequence(
+        f"{name} steps",
+        memory=True,
+        children=[
+            PerceiveObject("perceive", object=object, **_wiring(PerceiveObject, namespace, remap)),
+            PlanGrasp("plan grasp", object=object, plan=plan, namespace=namespace, remap=remap),
+            Gripper("open", action="open"),
+            ExecutePrimitive("approach", remap={"primitive": primitives["approach"]}),
+            ExecutePrimitive("descend", remap={"primitive": primitives["descend"]}),
+            Gripper("close", action="close", expect_grasp=True, object=object),
+            ExecutePrimitive("lift", remap={"primitive": primitives["lift"]}),
+            ObjectGrasped("grasped?", object=object),
+        ],
+    )
+    tree = py_trees.decorators.Retry(name, steps, num_failures=attempts)
+    tree.besman_spec = {
+        "type": "Grasp",
+        "name": name,
+        "object": object,
+        "namespace": namespace,
+        "attempts": attempts,
+        "remap": remap,
+    }
+    return tree
+
+
+def place(
+    name: str = "place",
+    *,
+    object: str = "box",
+    namespace: str = "place",
+    target: str | None = None,
+    plan: PickPlacePlan = DEFAULT_PLAN,
+    remap: Mapping[str, str] | None = None,
+) -> py_trees.behaviour.Behaviour:
+    """A subtree that puts the held ``object`` down at the target (role ``target``, or the key ``target``)."""
+    own_remap = _checked(name, remap or {}, PlanPlace)
+    remap = own_remap | ({"target": target} if target is not None else {})
+    primitives = PlanPlace.role_keys(namespace, remap)
+    tree = py_trees.composites.Sequence(
+        name,
+        memory=True,
+        children=[
+            PlanPlace("plan place", object=object, plan=plan, namespace=namespace, remap=remap),
+            _while_holding("transport", object, primitives["transport"]),
+            _while_holding("set down", object, primitives["place"]),
+            Gripper("release", action="open"),
+            ExecutePrimitive("retreat", remap={"primitive": primitives["retreat"]}),
+            ObjectAt("placed?", object=object, **_wiring(ObjectAt, namespace, remap)),
+        ],
+    )
+    tree.besman_spec = {
+        "type": "Place",
+        "name": name,
+        "object": object,
+        "namespace": namespace,
+        "target": target,
+        "remap": own_remap,
+    }
+    return tree
+
+
+def grasp_then_place(
+    name: str = "grasp then place",
+    *,
+    object: str = "box",
+    target: str = "/task/place",
+    attempts: int = 3,
+    plan: PickPlacePlan = DEFAULT_PLAN,
+) -> py_trees.behaviour.Behaviour:
+    """Grasp ``object`` (unless already held) and place it at the blackboard key ``target``; a failure
+    anywhere (a slip, a missed grasp) retries from the top, up to ``attempts`` times."""
+    holding = py_trees.composites.Selector(
+        "hold the object",
+        memory=True,
+        children=[ObjectGrasped("holding?", object=object), grasp("grasp", object=object, plan=plan)],
+    )
+    sequence = py_trees.composites.Sequence(
+        f"{name} steps",
+        memory=True,
+        children=[holding, place("place", object=object, target=target, plan=plan)],
+    )
+    tree = py_trees.decorators.Retry(name, sequence, num_failures=attempts)
+    tree.besman_spec = {
+        "type": "GraspThenPlace",
+        "name": name,
+        "object": object,
+        "target": target,
+        "attempts": attempts,
+    }
+    return tree
+
+
+def _checked(subtree: str, remap: Mapping[str, str], planner: type[RoleBehaviour]) -> dict[str, str]:
+    """A subtree's remap, whose roles are its planning leaf's (the other leaves use a subset of them)."""
+    unknown = sorted(set(remap) - set(planner.roles))
+    if unknown:
+        raise InputError(
+            f"{subtree}: remap names unknown role {unknown[0]!r}; roles: {', '.join(planner.roles)}"
+        )
+    return dict(remap)
+
+
+def _wiring(leaf: type[RoleBehaviour], namespace: str, remap: Mapping[str, str]) -> dict:
+    """The namespace and the part of a subtree's remap that concerns ``leaf``'s roles."""
+    return {"namespace": namespace, "remap": {role: key for role, key in remap.items() if role in leaf.roles}}
+
+
+def _while_holding(name: str, object: str, primitive_key: str) -> py_trees.behaviour.Behaviour:
+    """Executes the primitive at ``primitive_key`` while a guard checks that ``object`` stays in the hand; a
+    slip fails it."""
+    motion = ExecutePrimitive(name, remap={"primitive": primitive_key})
+    guard = py_trees.decorators.SuccessIsRunning("keep holding", ObjectGrasped("holding?", object=object))
+    return py_trees.composites.Parallel(
+        f"{name} holding {object}",
+        policy=py_trees.common.ParallelPolicy.SuccessOnSelected(children=[motion]),
+        children=[motion, guard],
+    )

@@ -1,0 +1,146 @@
+"""The node types of tree files: how each is built and which parameters it takes, derived from the code.
+
+A leaf class declares its tree-file parameters (:attr:`~besman.trees.base.RoleBehaviour.parameters`) and
+blackboard roles once; its defaults are its constructor's. Roles add ``namespace`` and ``remap``. Subtree
+idioms are functions, so their parameter kinds are declared here; py_trees' composites and decorators get a
+line each. Parameter kinds: ``str``, ``float``, ``int``, ``bool``, ``floats`` (a list of numbers), ``keys``
+(a mapping of roles or keys to keys), ``primitive`` (a primitive's JSON file), ``template`` and ``pool``
+(``module:attribute``).
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import py_trees
+
+from besman.trees.base import RoleBehaviour
+from besman.trees.conditions import AtPose, ObjectAt, ObjectGrasped
+from besman.trees.idioms import grasp, grasp_then_place, place
+from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
+from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanPlace
+from besman.trees.timing import SimTimeout, Wait
+
+WIRING = {"namespace": "str", "remap": "keys"}
+
+
+@dataclass(frozen=True)
+class Param:
+    """A node parameter: its kind, whether it is required, and its default (from the constructor)."""
+
+    kind: str
+    required: bool = False
+    default: Any = None
+
+
+@dataclass(frozen=True)
+class NodeType:
+    """How to build one node type from its parameters.
+
+    Attributes:
+        build: the class or factory, called with ``name``, the parameters and the children.
+        params: parameter -> :class:`Param`.
+        children: "none", "one" (decorators: ``child``) or "many" (composites: ``children``).
+        roles: the class whose blackboard roles the node has (the planning leaf, for a subtree), if any.
+    """
+
+    build: Callable[..., py_trees.behaviour.Behaviour]
+    params: dict[str, Param] = field(default_factory=dict)
+    children: str = "none"
+    roles: type[RoleBehaviour] | None = None
+
+
+def _params(build: Callable, kinds: Mapping[str, str]) -> dict[str, Param]:
+    """Parameters of the given kinds, required or defaulted as ``build``'s signature says."""
+    signature = inspect.signature(build)
+    params = {}
+    for name, kind in kinds.items():
+        default = signature.parameters[name].default
+        required = default is inspect.Parameter.empty
+        params[name] = Param(kind, required, None if required else default)
+    return params
+
+
+def leaf(cls: type[RoleBehaviour]) -> NodeType:
+    """The node type of a behaviour class, from what it declares."""
+    kinds = dict(cls.parameters) | (WIRING if cls.roles else {})
+    return NodeType(cls, _params(cls, kinds), roles=cls if cls.roles else None)
+
+
+def subtree(factory: Callable, kinds: Mapping[str, str], roles: type[RoleBehaviour] | None) -> NodeType:
+    """The node type of a subtree idiom whose blackboard roles (if it takes a remap) are those of its
+    planning leaf ``roles``."""
+    return NodeType(factory, _params(factory, kinds), roles=roles)
+
+
+_POLICIES = {
+    "all": py_trees.common.ParallelPolicy.SuccessOnAll,
+    "one": py_trees.common.ParallelPolicy.SuccessOnOne,
+}
+
+
+def _decorator(cls) -> NodeType:
+    return NodeType(lambda name, child: cls(name, child), {}, "one")
+
+
+NODE_TYPES: dict[str, NodeType] = {
+    "Sequence": NodeType(
+        lambda name, memory, children: py_trees.composites.Sequence(name, memory, children),
+        {"memory": Param("bool", default=True)},
+        "many",
+    ),
+    "Selector": NodeType(
+        lambda name, memory, children: py_trees.composites.Selector(name, memory, children),
+        {"memory": Param("bool", default=True)},
+        "many",
+    ),
+    "Parallel": NodeType(
+        lambda name, policy, children: py_trees.composites.Parallel(name, _POLICIES[policy](), children),
+        {"policy": Param("str", default="all")},
+        "many",
+    ),
+    "Retry": NodeType(
+        lambda name, attempts, child: py_trees.decorators.Retry(name, child, attempts),
+        {"attempts": Param("int", required=True)},
+        "one",
+    ),
+    "Repeat": NodeType(
+        lambda name, times, child: py_trees.decorators.Repeat(name, child, times),
+        {"times": Param("int", required=True)},
+        "one",
+    ),
+    "Inverter": _decorator(py_trees.decorators.Inverter),
+    "SuccessIsFailure": _decorator(py_trees.decorators.SuccessIsFailure),
+    "FailureIsSuccess": _decorator(py_trees.decorators.FailureIsSuccess),
+    "SuccessIsRunning": _decorator(py_trees.decorators.SuccessIsRunning),
+    "Timeout": NodeType(
+        lambda name, duration, child: SimTimeout(name, child, duration=duration),
+        {"duration": Param("float", required=True)},
+        "one",
+    ),
+    **{
+        cls.__name__: leaf(cls)
+        for cls in (
+            ExecutePrimitive,
+            InstantiateSkillTemplate,
+            Gripper,
+            ObjectGrasped,
+            ObjectAt,
+            AtPose,
+            Wait,
+            PerceiveObject,
+            PlanGrasp,
+            PlanPlace,
+        )
+    },
+    "Grasp": subtree(
+        grasp, {"object": "str", "namespace": "str", "attempts": "int", "remap": "keys"}, PlanGrasp
+    ),
+    "Place": subtree(
+        place, {"object": "str", "namespace": "str", "target": "str", "remap": "keys"}, PlanPlace
+    ),
+    "GraspThenPlace": subtree(grasp_then_place, {"object": "str", "target": "str", "attempts": "int"}, None),
+}
