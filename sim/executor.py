@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -61,10 +62,9 @@ class ExecutorConfig:
     arrival_timeout: float = 1.0
 
 
-@dataclass(frozen=True, slots=True)
-class LogEntry:
+class LogEntry(NamedTuple):
     """One control cycle: sim time, commanded joint positions, velocities, accelerations (lists of floats, in
-    the arm's joint order), gripper command."""
+    the arm's joint order), gripper command. (A named tuple: one is made every cycle.)"""
 
     time: float
     position: list[float]
@@ -236,19 +236,22 @@ class Executor:
     def _simulate(self, commands: list) -> tuple[np.ndarray, np.ndarray | None]:
         """Steps the physics through commanded (arm, gripper) states, logging each cycle; returns the arm's
         measured joint positions and the fingers' speeds after each cycle."""
-        model, data, arm = self.world.model, self.world.data, self.arm
+        model, data, arm, log = self.world.model, self.world.data, self.arm, self.log
+        ctrl, qpos, qvel, step = data.ctrl, data.qpos, data.qvel, mujoco.mj_step
+        actuators, joints, fingers_at = arm.actuator_indices, arm.qpos_indices, self._finger_dofs
+        gripper_actuator, substeps = self._gripper_actuator, range(self.substeps)
         measured = np.empty((len(commands), arm.dofs))
-        fingers = None if self.hand is None else np.empty((len(commands), len(self._finger_dofs)))
+        fingers = None if fingers_at is None else np.empty((len(commands), len(fingers_at)))
         for row, ((position, velocity, acceleration), gripper) in enumerate(commands):
-            data.ctrl[arm.actuator_indices] = position
+            ctrl[actuators] = position
             if gripper is not None:
-                data.ctrl[self._gripper_actuator] = gripper[0][0]
-            for _ in range(self.substeps):
-                mujoco.mj_step(model, data)
-            measured[row] = data.qpos[arm.qpos_indices]
+                ctrl[gripper_actuator] = gripper[0][0]
+            for _ in substeps:
+                step(model, data)
+            measured[row] = qpos[joints]
             if fingers is not None:
-                fingers[row] = data.qvel[self._finger_dofs]
-            self.log.append(
+                fingers[row] = qvel[fingers_at]
+            log.append(
                 LogEntry(data.time, position, velocity, acceleration, gripper[0][0] if gripper else 0.0)
             )
         return measured, fingers

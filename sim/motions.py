@@ -121,6 +121,9 @@ class Motion:
         succeeds once the command is at ``goal`` (and ``done``) and the robot has stayed within
         ``arrival_tolerance`` of it for ``settle_cycles``; fails if it does not arrive in time."""
         config = executor.config
+        if not done[:until].any():  # still on the way (most chunks): nothing is at the goal yet
+            self.settled = 0
+            return
         commanded_there = done & (np.abs(chunk.commanded - goal).max(axis=1) <= AT_GOAL)
         error = np.abs(chunk.measured - goal)
         arrived = commanded_there & (error.max(axis=1) <= config.arrival_tolerance)

@@ -27,6 +27,7 @@ units, default 0.1 rad or m) - a sensible exploration step for an optimiser in e
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -59,6 +60,39 @@ class _LinearMap:
     times: np.ndarray
     by_parameters: tuple[np.ndarray, np.ndarray, np.ndarray]  # (T, N + 2) for weights, goal, goal velocity
     by_start: tuple[np.ndarray, np.ndarray, np.ndarray]  # (T, 3) for y0, yd0, ydd0
+
+
+@functools.lru_cache(maxsize=32)
+def linear_map(settings: DMPSettings, tau: float, dt: float, run_time: float) -> _LinearMap:
+    """The responses of a DMP of these settings, execution time ``tau`` and step ``dt`` from 0 to
+    ``run_time``: shared by every DMP of the same timing (planning and execution make many), and read-only."""
+    system = settings.system
+    steps = max(1, round(run_time / dt))
+    times = np.linspace(0.0, run_time, steps + 1)
+    s = times / tau
+    e, de, dde = system.forced_response(settings.basis, s)
+    goal_position, goal_velocity, goal_acceleration = moving_goal_basis(s)
+    # The quintic's boundary vector is (y0, tau yd0, tau^2 ydd0, g, tau gd, 0) in normalised time.
+    normalise = np.array([1.0, tau, tau**2, 1.0, tau, 0.0])
+    by_derivative = []
+    for order, (forced, quintic) in enumerate(
+        [(e, goal_position), (de, goal_velocity), (dde, goal_acceleration)]
+    ):
+        to_time = tau**-order  # d/dt = (1 / tau) d/ds
+        quintic = quintic * normalise * to_time
+        parameters = np.column_stack([forced * to_time, quintic[:, 3], quintic[:, 4]])
+        by_derivative.append((parameters, quintic[:, :3]))
+    after = s > 1.0
+    if after.any():
+        # After tau the goal stops while y keeps its velocity: the free response to a jump of tau*gd.
+        free, dfree = system.free_response(s[after] - 1.0)
+        ddfree = -system.alpha_y * system.beta_y * free - system.alpha_y * dfree
+        for order, response in enumerate((free, dfree, ddfree)):
+            by_derivative[order][0][after, -1] += tau * response * tau**-order
+    arrays = [times, *(p for p, _ in by_derivative), *(q for _, q in by_derivative)]
+    for array in arrays:
+        array.flags.writeable = False
+    return _LinearMap(times, tuple(p for p, _ in by_derivative), tuple(q for _, q in by_derivative))
 
 
 class DMP:
@@ -104,7 +138,6 @@ class DMP:
         self.goal = broadcast_vector("goal", goal, self.n_dims)
         self.goal_velocity = broadcast_vector("goal_velocity", goal_velocity, self.n_dims)
         self.weights = np.zeros((self.n_dims, self.n_weights))
-        self._maps: dict[float, _LinearMap] = {}
 
     # -- configuration -------------------------------------------------------------------------------------
 
@@ -132,7 +165,6 @@ class DMP:
     @execution_time.setter
     def execution_time(self, value: float) -> None:
         self._execution_time = positive("execution_time", value)
-        self._maps.clear()
 
     @property
     def dt(self) -> float:
@@ -141,7 +173,6 @@ class DMP:
     @dt.setter
     def dt(self, value: float) -> None:
         self._dt = positive("dt", value)
-        self._maps.clear()
 
     def _scale(self, scale) -> np.ndarray:
         scale = broadcast_vector("scale", scale, self.n_dims)
@@ -203,35 +234,7 @@ class DMP:
     # -- generation ----------------------------------------------------------------------------------------
 
     def _linear_map(self, run_time: float) -> _LinearMap:
-        if run_time not in self._maps:
-            tau = self._execution_time
-            steps = max(1, round(run_time / self._dt))
-            times = np.linspace(0.0, run_time, steps + 1)
-            s = times / tau
-            e, de, dde = self.system.forced_response(self.basis, s)
-            goal_position, goal_velocity, goal_acceleration = moving_goal_basis(s)
-            # The quintic's boundary vector is (y0, tau yd0, tau^2 ydd0, g, tau gd, 0) in normalised time.
-            normalise = np.array([1.0, tau, tau**2, 1.0, tau, 0.0])
-            by_derivative = []
-            for order, (forced, quintic) in enumerate(
-                [(e, goal_position), (de, goal_velocity), (dde, goal_acceleration)]
-            ):
-                to_time = tau**-order  # d/dt = (1 / tau) d/ds
-                quintic = quintic * normalise * to_time
-                parameters = np.column_stack([forced * to_time, quintic[:, 3], quintic[:, 4]])
-                by_derivative.append((parameters, quintic[:, :3]))
-            after = s > 1.0
-            if after.any():
-                # After tau the goal stops while y keeps its velocity: the free response to a jump of tau*gd.
-                free, dfree = self.system.free_response(s[after] - 1.0)
-                ddfree = -self.system.alpha_y * self.system.beta_y * free - self.system.alpha_y * dfree
-                for order, response in enumerate((free, dfree, ddfree)):
-                    by_derivative[order][0][after, -1] += tau * response * tau**-order
-            self._maps.clear()  # keep one run time: a DMP is usually generated at one length
-            self._maps[run_time] = _LinearMap(
-                times, tuple(p for p, _ in by_derivative), tuple(q for _, q in by_derivative)
-            )
-        return self._maps[run_time]
+        return linear_map(self.settings, self._execution_time, self._dt, run_time)
 
     def _run_time(self, run_time: float | None) -> float:
         return self._execution_time if run_time is None else positive("run_time", run_time)
