@@ -21,7 +21,6 @@ marker - raises :class:`DemonstrationError` naming the file, line or marker.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,10 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from besman.skills.errors import BesmanError
-from besman.skills.storage import npz_bytes, read_npz, write_atomically
+from besman.skills.storage import npz_bytes, read_json, read_npz, require_field, write_atomically
 
 SCHEMA_VERSION = 1
 AXES = ("X", "Y", "Z")
+# The fields of each entry of a ``<stem>_manually_segmented.json``, in the order of Segment's.
+SEGMENT_FIELDS = (("start index", int), ("end index", int), ("label", str))
 
 
 # The six main segments of each run of the DFKI pick-and-place recordings (their ``_part`` sub-segments
@@ -215,21 +216,22 @@ def _ground_truth(path: Path, frames: np.ndarray) -> tuple[Segment, ...]:
     sidecar = path.with_name(f"{path.stem}_manually_segmented.json")
     if not sidecar.exists():
         return ()
-    try:
-        entries = json.loads(sidecar.read_text(encoding="utf-8"))
-        segments = tuple(
-            Segment(int(e["start index"]), int(e["end index"]), str(e["label"])) for e in entries
+    segments = []
+    for number, entry in enumerate(read_json(sidecar, DemonstrationError, top=list)):
+        where = f"{sidecar}[{number}]"
+        if not isinstance(entry, dict):
+            raise DemonstrationError(f"{where}: expected a segment object, got {entry!r}")
+        segments.append(
+            Segment(
+                *(require_field(entry, key, kind, where, DemonstrationError) for key, kind in SEGMENT_FIELDS)
+            )
         )
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
-        raise DemonstrationError(
-            f"{sidecar}: not a list of segments with 'start index', 'end index', 'label' ({error})"
-        ) from None
     for segment in segments:
         if not frames[0] <= segment.start_frame <= segment.end_frame <= frames[-1]:
             raise DemonstrationError(
                 f"{sidecar}: segment {segment} lies outside the recording's frames {frames[0]}..{frames[-1]}"
             )
-    return segments
+    return tuple(segments)
 
 
 def load_csv(path: str | Path, *, time_column: str = "time", units: str = "m") -> Demonstration:

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from besman.skills.errors import BesmanError
-from besman.skills.storage import check_schema_version, read_json, require_field
+from besman.skills.storage import check_schema_version, optional_field, read_json, require_field
 
 SCHEMA_VERSION = 1
 
@@ -90,13 +90,10 @@ def read_description(path: Path) -> RobotDescription:
         group_where = f"{where}.groups.{group_name}"
         if not isinstance(group, dict):
             raise DescriptionError(f"{group_where}: expected an object, got {group!r}")
-        site = group.get("site")
-        if site is not None and not isinstance(site, str):
-            raise DescriptionError(f"{group_where}.site: expected a site name or null, got {site!r}")
         groups[group_name] = GroupSpec(
             name=group_name,
             joints=_string_list(group.get("joints", []), f"{group_where}.joints"),
-            site=site,
+            site=optional_field(group, "site", str, group_where, DescriptionError),
             equalities=_string_list(group.get("equalities", []), f"{group_where}.equalities"),
         )
 
@@ -117,7 +114,7 @@ def read_description(path: Path) -> RobotDescription:
 
     return RobotDescription(
         name=_field(raw, "name", str, where),
-        title=raw.get("title", ""),
+        title=optional_field(raw, "title", str, where, DescriptionError) or "",
         model_file=path.parent / _field(raw, "model", str, where),
         keyframe=_field(raw, "keyframe", str, where),
         groups=groups,

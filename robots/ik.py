@@ -19,6 +19,7 @@ random configurations and keeps the best result. An unreachable target is not an
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -199,6 +200,20 @@ def _weights(joint_weights, size: int) -> np.ndarray:
     return weights
 
 
+@functools.lru_cache(maxsize=64)
+def _joints(robot: Robot, groups: tuple[str, ...]) -> tuple[np.ndarray, ...]:
+    """qpos and dof indices and the limits of the groups' joints, in their order (computed once per robot
+    and groups: planning solves many IK problems for one arm)."""
+    members = [robot.group(name) for name in groups]
+    arrays = tuple(
+        np.concatenate([getattr(g, field) for g in members])
+        for field in ("qpos_indices", "dof_indices", "lower", "upper")
+    )
+    for array in arrays:
+        array.flags.writeable = False  # shared by every solve
+    return arrays
+
+
 def solve_ik(
     robot: Robot,
     group: str | Sequence[str],
@@ -253,15 +268,16 @@ def solve_ik(
         if initial_qpos.shape != (model.nq,) or not np.all(np.isfinite(initial_qpos)):
             raise InputError(f"initial_qpos must be {model.nq} finite numbers")
         data.qpos[:] = initial_qpos
+    qpos_indices, dof_indices, lower, upper = _joints(robot, tuple(g.name for g in groups))
     problem = _Problem(
         model,
         data,
         site_id(model, site_name),
-        np.concatenate([g.qpos_indices for g in groups]),
-        np.concatenate([g.dof_indices for g in groups]),
-        np.concatenate([g.lower for g in groups]),
-        np.concatenate([g.upper for g in groups]),
-        _weights(joint_weights, sum(g.size for g in groups)),
+        qpos_indices,
+        dof_indices,
+        lower,
+        upper,
+        _weights(joint_weights, len(qpos_indices)),
         target_position,
         target_orientation,
     )
@@ -269,10 +285,11 @@ def solve_ik(
 
     start = np.clip(data.qpos[problem.qpos_indices].copy(), problem.lower, problem.upper)
     best_q, best_error, total = _attempt(problem, start, tolerances, max_iterations)
-    rng = np.random.default_rng(seed)
+    rng = None
     for _ in range(restarts):
         if tolerances.met(best_error):
             break
+        rng = rng or np.random.default_rng(seed)  # made only when needed: most solves need no restart
         q, error, used = _attempt(
             problem, rng.uniform(problem.lower, problem.upper), tolerances, max_iterations
         )

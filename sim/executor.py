@@ -204,26 +204,25 @@ class Executor:
             for _ in range(cycles):
                 self._hold()
             return MotionStatus.SUCCEEDED if motion is None else motion.status
-        first, commands = motion.cycles + 1, []
+        first, commands, stream = motion.cycles + 1, [], self.stream
+        # Arm motions leave the gripper where it is: its command is the same all chunk long.
+        gripper_moves = motion.moves_gripper
+        gripper = None if self.hand is None else self.gripper_stream.state_lists()
         for _ in range(cycles):
             motion.cycles += 1
             result = motion.command(self)
             if result not in WORKING:
                 motion.finish(MotionStatus.FAILED, f"Ruckig could not compute a command ({result.name})")
                 break
-            commands.append(
-                (self.stream.state_lists(), self.gripper_stream.state_lists() if self.hand else None)
-            )
-        measured, fingers = self._simulate(commands)
+            if gripper_moves:
+                gripper = self.gripper_stream.state_lists()
+            commands.append((stream.state_lists(), gripper))
+        measured, fingers = self._simulate(commands, record_fingers=gripper_moves)
         for _ in range(cycles - len(commands)):
             self._hold()  # after a failed command the arm holds its last one
         if motion.status is MotionStatus.RUNNING:
-            arm = [np.array(column) for column in zip(*(state for state, _ in commands), strict=True)]
-            gripper = (
-                None if self.hand is None else np.array([(state[0][0], state[1][0]) for _, state in commands])
-            )
-            finger_speed = None if fingers is None else np.abs(fingers).max(axis=1)
-            motion.judge(self, Chunk(first, *arm, measured, gripper, finger_speed))
+            grippers = [state for _, state in commands] if gripper_moves else None
+            motion.judge(self, Chunk(first, [state for state, _ in commands], measured, grippers, fingers))
             fault = self.monitor.check(self.world.data)
             if fault is not None:  # a judgement on a faulty state does not count
                 motion.finish(MotionStatus.FAILED, f"simulation fault: {fault}")
@@ -233,15 +232,15 @@ class Executor:
         """One control cycle: command, simulate, judge, check for faults; returns the motion's status."""
         return self.advance(1)
 
-    def _simulate(self, commands: list) -> tuple[np.ndarray, np.ndarray | None]:
+    def _simulate(self, commands: list, record_fingers: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
         """Steps the physics through commanded (arm, gripper) states, logging each cycle; returns the arm's
-        measured joint positions and the fingers' speeds after each cycle."""
+        measured joint positions and (if asked) the fingers' velocities after each cycle."""
         model, data, arm, log = self.world.model, self.world.data, self.arm, self.log
         ctrl, qpos, qvel, step = data.ctrl, data.qpos, data.qvel, mujoco.mj_step
         actuators, joints, fingers_at = arm.actuator_indices, arm.qpos_indices, self._finger_dofs
         gripper_actuator, substeps = self._gripper_actuator, range(self.substeps)
         measured = np.empty((len(commands), arm.dofs))
-        fingers = None if fingers_at is None else np.empty((len(commands), len(fingers_at)))
+        fingers = np.empty((len(commands), len(fingers_at))) if record_fingers else None
         for row, ((position, velocity, acceleration), gripper) in enumerate(commands):
             ctrl[actuators] = position
             if gripper is not None:

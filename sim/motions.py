@@ -23,7 +23,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import TYPE_CHECKING
+from functools import cached_property
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import ruckig
@@ -45,25 +46,44 @@ class MotionStatus(Enum):
     FAILED = "failed"
 
 
-@dataclass(frozen=True)
 class Chunk:
-    """What happened in consecutive control cycles of one motion, one row per cycle.
+    """What happened in consecutive control cycles of one motion, one row per cycle; arrays are made when a
+    motion's judgement first asks for them.
 
     Attributes:
         first: the motion's cycle number of the first row (1 for the motion's first cycle).
         commanded, commanded_velocity, commanded_acceleration: the arm's commanded state after each cycle.
         measured: the arm's joint positions after each cycle's physics.
-        gripper: the commanded gripper opening and its velocity after each cycle (columns), if any.
-        finger_speed: the fingers' largest measured speed after each cycle, if there is a gripper.
+        gripper: the commanded gripper opening and its velocity after each cycle (columns), if recorded.
+        finger_speed: the fingers' largest measured speed after each cycle, if recorded.
     """
 
-    first: int
-    commanded: np.ndarray
-    commanded_velocity: np.ndarray
-    commanded_acceleration: np.ndarray
-    measured: np.ndarray
-    gripper: np.ndarray | None
-    finger_speed: np.ndarray | None
+    def __init__(self, first: int, states: list, measured: np.ndarray, gripper: list | None, fingers) -> None:
+        self.first, self._states, self.measured = first, states, measured
+        self._gripper, self._fingers = gripper, fingers
+
+    def __len__(self) -> int:
+        return len(self._states)
+
+    @cached_property
+    def commanded(self) -> np.ndarray:
+        return np.array([state[0] for state in self._states])
+
+    @cached_property
+    def commanded_velocity(self) -> np.ndarray:
+        return np.array([state[1] for state in self._states])
+
+    @cached_property
+    def commanded_acceleration(self) -> np.ndarray:
+        return np.array([state[2] for state in self._states])
+
+    @cached_property
+    def gripper(self) -> np.ndarray:
+        return np.array([(state[0][0], state[1][0]) for state in self._gripper])
+
+    @cached_property
+    def finger_speed(self) -> np.ndarray:
+        return np.abs(self._fingers).max(axis=1)
 
     @property
     def at_rest(self) -> np.ndarray:
@@ -82,6 +102,7 @@ class Motion:
     cycles: int = field(default=0, init=False)  # cycles commanded so far
     settled: int = field(default=0, init=False)  # consecutive cycles at the goal
     waited: int = field(default=0, init=False)  # cycles the command has been at the goal
+    moves_gripper: ClassVar[bool] = False  # whether the chunk must record the gripper and the fingers
 
     def finish(self, status: MotionStatus, message: str = "") -> MotionStatus:
         self.status, self.message = status, message
@@ -127,7 +148,7 @@ class Motion:
         commanded_there = done & (np.abs(chunk.commanded - goal).max(axis=1) <= AT_GOAL)
         error = np.abs(chunk.measured - goal)
         arrived = commanded_there & (error.max(axis=1) <= config.arrival_tolerance)
-        rows = len(chunk.commanded) if until is None else until
+        rows = len(chunk) if until is None else until
         for row in range(rows):
             self.settled = self.settled + 1 if arrived[row] else 0
             if self.settled >= config.settle_cycles:
@@ -191,7 +212,7 @@ class FollowReference(Motion):
     def judge(self, executor: Executor, chunk: Chunk) -> None:
         positions = self.reference.positions
         last = len(positions) - 1
-        cycles = np.arange(chunk.first, chunk.first + len(chunk.commanded))
+        cycles = np.arange(chunk.first, chunk.first + len(chunk))
         lag = np.abs(chunk.commanded - positions[np.minimum(cycles, last)])
         lagging = np.flatnonzero((cycles < last) & (lag.max(axis=1) > executor.config.lag_tolerance))
         blocked = self.blocked_at(executor, chunk)
@@ -255,6 +276,7 @@ class GripperMotion(Motion):
     expect_grasp: bool = False
     grasp_object: str | None = None
     _target: tuple = field(default=(), init=False, repr=False)
+    moves_gripper: ClassVar[bool] = True
 
     def begin(self, executor: Executor) -> None:
         if executor.hand is None:
@@ -274,7 +296,7 @@ class GripperMotion(Motion):
         closed_on_limit = self.opening <= executor.gripper_stream.lower[0] + 1e-9
         commanded_done = (np.abs(opening - self.opening) < 1e-9) | (closed_on_limit & (np.abs(speed) < 1e-9))
         still = commanded_done & (chunk.finger_speed <= 1e-3)
-        for row in range(len(chunk.commanded) if blocked is None else blocked):
+        for row in range(len(chunk) if blocked is None else blocked):
             self.settled = self.settled + 1 if still[row] else 0
             if self.settled >= executor.config.settle_cycles:
                 # Judged on the simulation as it is now (at most a chunk later): the fingers have settled.

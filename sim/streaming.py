@@ -71,6 +71,11 @@ class JerkLimitedStream:
         return inputs.current_position, inputs.current_velocity, inputs.current_acceleration
 
     @property
+    def at_rest_exactly(self) -> bool:
+        inputs = self._input
+        return not any(inputs.current_velocity) and not any(inputs.current_acceleration)
+
+    @property
     def at_rest(self) -> bool:
         inputs = self._input
         return (
@@ -127,7 +132,10 @@ class JerkLimitedStream:
         return self._update()
 
     def brake(self) -> ruckig.Result:
-        """One cycle of braking to rest within the limits (velocity control to zero)."""
+        """One cycle of braking to rest within the limits (velocity control to zero); at rest already, the
+        state stays as it is (what Ruckig would return, without asking it)."""
+        if self.at_rest_exactly:
+            return ruckig.Result.Finished
         inputs = self._input
         inputs.control_interface = ruckig.ControlInterface.Velocity
         inputs.synchronization = ruckig.Synchronization.No

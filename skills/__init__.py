@@ -10,7 +10,7 @@
   checks; :mod:`besman.skills.errors` - :class:`BesmanError`, the base of every error besman raises for bad
   input.
 
-Depends on numpy, scipy and scikit-learn only; every other besman package may use it.
+Imports numpy and scipy and no other besman package, so every other besman package may use it.
 """
 
 from besman.skills.cartesian_dmp import CartesianDMP, CartesianTrajectory

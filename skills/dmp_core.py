@@ -75,13 +75,17 @@ class Primitive(Protocol):
     """What every primitive kind (:class:`~besman.skills.dmp.DMP`,
     :class:`~besman.skills.cartesian_dmp.CartesianDMP`) provides."""
 
-    settings: DMPSettings
+    @property
+    def settings(self) -> DMPSettings: ...
 
     @property
     def n_params(self) -> int: ...
 
     @property
     def execution_time(self) -> float: ...
+
+    @execution_time.setter
+    def execution_time(self, value: float) -> None: ...
 
     @property
     def dt(self) -> float: ...

@@ -14,7 +14,6 @@ anything wrong.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,11 +22,12 @@ import numpy as np
 
 from besman.skills.cartesian_dmp import CartesianDMP
 from besman.skills.dmp import DMP
-from besman.skills.dmp_core import DMPSettings
+from besman.skills.dmp_core import DMPSettings, Primitive
 from besman.skills.errors import InputError
 from besman.skills.storage import (
     check_schema_version,
     npz_bytes,
+    optional_field,
     read_json,
     read_npz,
     require_field,
@@ -61,7 +61,7 @@ class MovementPrimitive:
     """A DMP together with its parameters and metadata.
 
     Attributes:
-        dmp: the joint-space :class:`DMP` or the :class:`CartesianDMP`.
+        dmp: the primitive: a joint-space :class:`DMP` or a :class:`CartesianDMP` (the kinds that are saved).
         name: a name people use for it ("approach", "throw").
         space: "joint" or "cartesian" (must match the DMP's kind).
         robot: the robot it is for (``besman.robots.available()``), if any.
@@ -70,7 +70,7 @@ class MovementPrimitive:
         provenance: JSON-compatible facts about its origin (demonstrations, learner, date, ...).
     """
 
-    dmp: DMP | CartesianDMP
+    dmp: Primitive
     name: str
     space: str = "joint"
     robot: str | None = None
@@ -139,9 +139,9 @@ class MovementPrimitive:
                 dmp=dmp,
                 name=require_field(document, "name", str, where),
                 space=require_field(document, "space", str, where),
-                robot=_optional(document, "robot", where),
-                group=_optional(document, "group", where),
-                frame=_optional(document, "frame", where),
+                robot=optional_field(document, "robot", str, where),
+                group=optional_field(document, "group", str, where),
+                frame=optional_field(document, "frame", str, where),
                 provenance=require_field(document, "provenance", dict, where),
             )
         except ValueError as error:
@@ -152,13 +152,6 @@ class MovementPrimitive:
 def _json_path(path: str | Path) -> Path:
     path = Path(path)
     return path if path.suffix == ".json" else path.with_name(path.name + ".json")
-
-
-def _optional(mapping: dict, key: str, where: str) -> str | None:
-    value = mapping.get(key)
-    if value is not None and not isinstance(value, str):
-        raise InputError(f"{where}: field {key!r} must be a string or null, got {value!r}")
-    return value
 
 
 def _dmp_state(dmp: DMP | CartesianDMP) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -184,15 +177,9 @@ def _restore_dmp(config: dict[str, Any], arrays: dict[str, np.ndarray]) -> DMP |
     kind = config.get("type")
     if kind not in ("DMP", "CartesianDMP"):
         raise InputError(f"dmp.type must be 'DMP' or 'CartesianDMP', got {kind!r}")
-    scalars = {}
-    for name in _SCALARS:
-        value = config.get(name)
-        if not isinstance(value, int | float) or isinstance(value, bool) or not math.isfinite(value):
-            raise InputError(f"dmp.{name} must be a finite number, got {value!r}")
-        scalars[name] = float(value)
-    n_weights = config.get("n_weights")
-    if not isinstance(n_weights, int) or isinstance(n_weights, bool):
-        raise InputError(f"dmp.n_weights must be an integer, got {n_weights!r}")
+    # NaN and infinities (which Python's JSON reads) are refused by the DMP and its settings, with the name.
+    scalars = {name: float(require_field(config, name, (int, float), "dmp")) for name in _SCALARS}
+    n_weights = require_field(config, "n_weights", int, "dmp")
     names = _POSITION_ARRAYS + (_ROTATION_ARRAYS if kind == "CartesianDMP" else ())
     missing = [name for name in names if name not in arrays]
     if missing:
@@ -202,9 +189,7 @@ def _restore_dmp(config: dict[str, Any], arrays: dict[str, np.ndarray]) -> DMP |
         n_weights, *(scalars.pop(name) for name in ("alpha_y", "beta_y", "final_phase", "overlap"))
     )
     if kind == "DMP":
-        n_dims = config.get("n_dims")
-        if not isinstance(n_dims, int) or isinstance(n_dims, bool):
-            raise InputError(f"dmp.n_dims must be an integer, got {n_dims!r}")
+        n_dims = require_field(config, "n_dims", int, "dmp")
         dmp = DMP(n_dims, settings=settings, **scalars, **vectors)
         dmp.weights = _weights("weights", arrays["weights"], (n_dims, n_weights))
         return dmp

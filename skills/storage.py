@@ -1,7 +1,9 @@
 """Safe persistence: whole files or nothing, JSON and NPZ only (never pickle), checksummed pairs.
 
 Writers go to a temporary file in the target folder and rename it into place, so a crash leaves either the
-old file or the new one, never half of one. Readers load NPZ with ``allow_pickle=False``.
+old file or the new one, never half of one. Readers load NPZ with ``allow_pickle=False``, and check JSON
+documents field by field (:func:`check_schema_version`, :func:`require_field`, :func:`optional_field`) with
+messages that name the file and the field; every error is a :class:`~besman.skills.errors.BesmanError`.
 """
 
 from __future__ import annotations
@@ -46,16 +48,17 @@ def sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def read_json(path: Path, error: type[BesmanError] = InputError) -> dict[str, Any]:
-    """A JSON object from ``path``; ``error`` names the file if it is missing or malformed."""
+def read_json(path: Path, error: type[BesmanError] = InputError, top: type[dict] | type[list] = dict) -> Any:
+    """The JSON object (or, with ``top=list``, list) in ``path``; ``error`` names the file if it is missing or
+    malformed."""
     try:
         value = json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise error(f"{path}: no such file") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as problem:
         raise error(f"{path}: not valid JSON ({problem})") from None
-    if not isinstance(value, dict):
-        raise error(f"{path}: expected a JSON object at the top level")
+    if not isinstance(value, top):
+        raise error(f"{path}: expected a JSON {'object' if top is dict else 'list'} at the top level")
     return value
 
 
@@ -83,6 +86,19 @@ def require_field(
         expected = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
         raise error(f"{where}.{key}: expected {expected}, got {value!r}")
     return value
+
+
+def optional_field(
+    mapping: dict[str, Any],
+    key: str,
+    kind: type | tuple[type, ...],
+    where: str,
+    error: type[BesmanError] = InputError,
+) -> Any:
+    """``mapping[key]`` checked as by :func:`require_field`, or None if it is absent or null."""
+    if mapping.get(key) is None:
+        return None
+    return require_field(mapping, key, kind, where, error)
 
 
 def read_npz(path: Path, expected_sha256: str | None = None) -> dict[str, np.ndarray]:

@@ -60,8 +60,7 @@ _QUINTIC = _quintic_coefficients()
 
 
 def minimum_jerk(s: np.ndarray) -> np.ndarray:
-    """The minimum-jerk profile 10 s^3 - 15 s^4 + 6 s^5 from 0 to 1 over s in [0, 1] (Flash and Hogan 1985):
-    the quintic from rest to rest, the moving goal's shape for a step."""
+    """The minimum-jerk profile 10 s^3 - 15 s^4 + 6 s^5: from 0 at rest (s = 0) to 1 at rest (s = 1)."""
     s = np.asarray(s, dtype=float)
     return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
 

@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from besman.learning.demonstration import DemonstrationError
+from besman.learning.demonstration import DemonstrationError, Segment, load
 from besman.robots import DescriptionError
 from besman.sim.manipulation import PlanningError
 from besman.skills import DMP, BesmanError, CartesianDMP, DMPSettings, InputError, Primitive
 from besman.skills.dmp_core import fit_weights
 from besman.skills.quaternion import from_matrix
+from besman.skills.storage import optional_field, read_json, require_field
 from besman.skills.transformation import minimum_jerk
 from besman.trees import TreeFileError
 
@@ -25,10 +26,13 @@ def test_every_primitive_kind_satisfies_the_protocol(make):
     assert dmp.set_params(theta) is dmp
     np.testing.assert_allclose(dmp.get_params(), theta)
     single = dmp.trajectory(run_time=0.5)
+    np.testing.assert_array_equal(dmp.trajectory(theta).positions, dmp.trajectory().positions)
     batch = dmp.trajectories(np.stack([theta, theta]))
     assert len(single.times) == round(0.5 / dmp.dt) + 1
     np.testing.assert_array_equal(batch.positions[0], batch.positions[1])
-    assert dmp.n_params == len(theta) and dmp.execution_time > 0
+    assert dmp.n_params == len(theta)
+    dmp.execution_time = 2.0
+    assert dmp.execution_time == 2.0 and dmp.trajectory().times[-1] == pytest.approx(2.0)
 
 
 def test_the_ridge_fit_solves_the_regularised_normal_equations():
@@ -94,3 +98,31 @@ def test_every_project_error_is_a_besman_error_and_a_value_error():
         assert issubclass(error, BesmanError) and issubclass(error, ValueError)
     with pytest.raises(BesmanError, match="theta contains NaN"):
         DMP(2).trajectory(np.full(24, np.nan))
+
+
+def test_json_fields_are_checked_with_the_file_and_the_field_named(tmp_path):
+    listing = tmp_path / "listing.json"
+    listing.write_text('[{"robot": 5}]')
+    [entry] = read_json(listing, top=list)
+    with pytest.raises(InputError, match="expected a JSON object"):
+        read_json(listing)
+    with pytest.raises(InputError, match=r"listing.json\[0\].robot: expected str, got 5"):
+        optional_field(entry, "robot", str, f"{listing}[0]")
+    assert (
+        optional_field({"robot": None}, "robot", str, "x") is None
+        and optional_field({}, "robot", str, "x") is None
+    )
+    with pytest.raises(InputError, match="x: missing field 'name'"):
+        require_field(entry, "name", str, "x")
+
+
+def test_a_damaged_ground_truth_names_the_file_and_the_field(tmp_path):
+    recording = tmp_path / "run.tsv"
+    rows = "".join(f"{frame}\t{0.01 * frame:.2f}\t{frame}\t0\t0\n" for frame in range(10))
+    recording.write_text("NO_OF_FRAMES\t10\nFrame\tTime\thand X\thand Y\thand Z\n" + rows)
+    sidecar = tmp_path / "run_manually_segmented.json"
+    sidecar.write_text('[{"start index": 2, "end index": 5, "label": "reach"}]')
+    assert load(recording).segments == (Segment(2, 5, "reach"),)
+    sidecar.write_text('[{"start index": 2, "end index": "5", "label": "reach"}]')
+    with pytest.raises(DemonstrationError, match=r"run_manually_segmented.json\[0\].end index: expected int"):
+        load(recording)

@@ -176,11 +176,12 @@ class Runner:
         ]
         stream.clear()
         world, gripper = self.executor.world, self.executor.gripper_opening
+        qpos = world.data.qpos
         robot = {
-            "joints": np.round(self.executor.arm.measured(), 5).tolist(),
+            "joints": [round(value, 5) for value in self.executor.arm.measured().tolist()],
             "gripper": None if gripper is None else round(gripper, 5),
             "objects": {
-                name: np.round(world.data.qpos[address : address + 3], 5).tolist()
+                name: [round(value, 5) for value in qpos[address : address + 3].tolist()]
                 for name, address in self._object_addresses.items()
             },
         }
