@@ -13,12 +13,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import mujoco
 import numpy as np
 
 from besman.sim.arm import Arm
+from besman.sim.command_log import CommandLog
 from besman.sim.faults import FaultMonitor
 from besman.sim.hand import Hand
 from besman.sim.motions import Chunk, Motion, MotionStatus, Stop
@@ -60,17 +60,6 @@ class ExecutorConfig:
     range_tolerance: float = 0.02
     lookahead_cycles: int = 10
     arrival_timeout: float = 1.0
-
-
-class LogEntry(NamedTuple):
-    """One control cycle: sim time, commanded joint positions, velocities, accelerations (lists of floats, in
-    the arm's joint order), gripper command. (A named tuple: one is made every cycle.)"""
-
-    time: float
-    position: list[float]
-    velocity: list[float]
-    acceleration: list[float]
-    gripper: float
 
 
 class Executor:
@@ -120,7 +109,7 @@ class Executor:
             knot_period=config.ik_knot_period,
         )
         self.monitor = FaultMonitor(world.model)
-        self.log: list[LogEntry] = []
+        self.log = CommandLog(self.arm.dofs)
         self.motion: Motion | None = None
         self.sync()
 
@@ -201,28 +190,29 @@ class Executor:
         with the fault."""
         motion = self.motion
         if motion is None or motion.status is not MotionStatus.RUNNING:
-            for _ in range(cycles):
-                self._hold()
+            self._hold(cycles)
             return MotionStatus.SUCCEEDED if motion is None else motion.status
         first, commands, stream = motion.cycles + 1, [], self.stream
         # Arm motions leave the gripper where it is: its command is the same all chunk long.
         gripper_moves = motion.moves_gripper
-        gripper = None if self.hand is None else self.gripper_stream.state_lists()
+        grippers = []
         for _ in range(cycles):
             motion.cycles += 1
             result = motion.command(self)
             if result not in WORKING:
                 motion.finish(MotionStatus.FAILED, f"Ruckig could not compute a command ({result.name})")
                 break
+            commands.append(stream.state_lists())
             if gripper_moves:
-                gripper = self.gripper_stream.state_lists()
-            commands.append((stream.state_lists(), gripper))
-        measured, fingers = self._simulate(commands, record_fingers=gripper_moves)
-        for _ in range(cycles - len(commands)):
-            self._hold()  # after a failed command the arm holds its last one
-        if motion.status is MotionStatus.RUNNING:
-            grippers = [state for _, state in commands] if gripper_moves else None
-            motion.judge(self, Chunk(first, [state for state, _ in commands], measured, grippers, fingers))
+                grippers.append(self.gripper_stream.state_lists())
+        if commands:
+            states = np.array(commands)
+            gripper = np.array(grippers) if gripper_moves else self._gripper_as_is(len(commands))
+            measured, fingers = self._simulate(states, gripper, record_fingers=gripper_moves)
+        if len(commands) < cycles:
+            self._hold(cycles - len(commands))  # after a failed command the arm holds its last one
+        if motion.status is MotionStatus.RUNNING:  # every cycle was commanded
+            motion.judge(self, Chunk(first, states, measured, gripper if gripper_moves else None, fingers))
             fault = self.monitor.check(self.world.data)
             if fault is not None:  # a judgement on a faulty state does not count
                 motion.finish(MotionStatus.FAILED, f"simulation fault: {fault}")
@@ -232,39 +222,48 @@ class Executor:
         """One control cycle: command, simulate, judge, check for faults; returns the motion's status."""
         return self.advance(1)
 
-    def _simulate(self, commands: list, record_fingers: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        """Steps the physics through commanded (arm, gripper) states, logging each cycle; returns the arm's
-        measured joint positions and (if asked) the fingers' velocities after each cycle."""
-        model, data, arm, log = self.world.model, self.world.data, self.arm, self.log
+    def _simulate(
+        self, states: np.ndarray, gripper: np.ndarray | None, record_fingers: bool = False
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Steps the physics through commanded arm states (n, 3, dofs) and gripper states (n, 3, 1; None
+        without a gripper), logging each cycle; returns the arm's measured joint positions after each cycle
+        and (if asked) the fingers' velocities."""
+        model, data, arm = self.world.model, self.world.data, self.arm
         ctrl, qpos, qvel, step = data.ctrl, data.qpos, data.qvel, mujoco.mj_step
         actuators, joints, fingers_at = arm.actuator_indices, arm.qpos_indices, self._finger_dofs
-        gripper_actuator, substeps = self._gripper_actuator, range(self.substeps)
-        measured = np.empty((len(commands), arm.dofs))
-        fingers = np.empty((len(commands), len(fingers_at))) if record_fingers else None
-        for row, ((position, velocity, acceleration), gripper) in enumerate(commands):
-            ctrl[actuators] = position
+        gripper_actuator, substeps, rows = self._gripper_actuator, range(self.substeps), len(states)
+        openings = np.zeros(rows) if gripper is None else gripper[:, 0, 0]
+        times, measured = np.empty(rows), np.empty((rows, arm.dofs))
+        fingers = np.empty((rows, len(fingers_at))) if record_fingers else None
+        for row in range(rows):
+            ctrl[actuators] = states[row, 0]
             if gripper is not None:
-                ctrl[gripper_actuator] = gripper[0][0]
+                ctrl[gripper_actuator] = openings[row]
             for _ in substeps:
                 step(model, data)
+            times[row] = data.time
             measured[row] = qpos[joints]
             if fingers is not None:
                 fingers[row] = qvel[fingers_at]
-            log.append(
-                LogEntry(data.time, position, velocity, acceleration, gripper[0][0] if gripper else 0.0)
-            )
+        self.log.append(times, states, openings)
         return measured, fingers
 
-    def _hold(self) -> None:
-        """One cycle with the commands as they are."""
-        gripper = self.gripper_stream.state_lists() if self.hand else None
-        self._simulate([(self.stream.state_lists(), gripper)])
+    def _gripper_as_is(self, cycles: int) -> np.ndarray | None:
+        """The gripper's commanded state repeated for ``cycles`` cycles (None without a gripper)."""
+        if self.hand is None:
+            return None
+        return np.repeat([self.gripper_stream.state_lists()], cycles, axis=0)
+
+    def _hold(self, cycles: int) -> None:
+        """``cycles`` cycles with the commands as they are."""
+        states = np.repeat([self.stream.state_lists()], cycles, axis=0)
+        self._simulate(states, self._gripper_as_is(cycles))
 
 
 RANGE_SLACK = 1e-3  # rad or m
 
 
-def limit_violations(log: Sequence[LogEntry], executor: Executor, tolerance: float = 1e-6) -> list[str]:
+def limit_violations(log: CommandLog, executor: Executor, tolerance: float = 1e-6) -> list[str]:
     """Checks a command log against the executor's limits; returns one message per violated limit.
 
     Checked per joint: the commanded velocity and acceleration, the jerk (change of the commanded
@@ -275,9 +274,7 @@ def limit_violations(log: Sequence[LogEntry], executor: Executor, tolerance: flo
     if len(log) < 2:
         return []
     arm, period = executor.arm, executor.config.control_period
-    positions = np.array([entry.position for entry in log])
-    velocities = np.array([entry.velocity for entry in log])
-    accelerations = np.array([entry.acceleration for entry in log])
+    positions, velocities, accelerations = log.positions, log.velocities, log.accelerations
     checks = [
         ("range", np.maximum(arm.lower - positions, positions - arm.upper), np.full(arm.dofs, RANGE_SLACK)),
         ("velocity", np.abs(velocities), arm.max_velocity),

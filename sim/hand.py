@@ -26,28 +26,29 @@ class Hand:
         self.pads = tuple(int(np.flatnonzero(model.geom_bodyid == body)[0]) for body in bodies)
         self.site = model.site(gripper.site).id
         self._velocity = np.empty(6)
+        self._bodies: dict[str, int] = {}  # body ids by name (a name lookup costs more than the check)
+
+    def _body(self, name: str) -> int:
+        if name not in self._bodies:
+            self._bodies[name] = self.world.model.body(name).id
+        return self._bodies[name]
 
     def touching(self, name: str) -> tuple[bool, bool]:
         """Whether each finger pad touches the object ``name``."""
-        model, data = self.world.model, self.world.data
-        geoms = data.contact.geom  # (ncon, 2), one vectorised pass over the contacts
-        bodies = model.geom_bodyid[geoms]
-        target = model.body(name).id
-        touch = []
-        for pad in self.pads:
-            first, second = geoms[:, 0] == pad, geoms[:, 1] == pad
-            other = np.where(first, bodies[:, 1], bodies[:, 0])
-            touch.append(bool(np.any((first | second) & (other == target))))
-        return touch[0], touch[1]
+        geoms = self.world.data.contact.geom  # (ncon, 2), one vectorised pass over the contacts
+        on_target = self.world.model.geom_bodyid[geoms] == self._body(name)
+        # A pad touches the object where it is one side of a contact and the object's body the other.
+        first = (geoms[:, 0, None] == self.pads) & on_target[:, 1, None]
+        second = (geoms[:, 1, None] == self.pads) & on_target[:, 0, None]
+        touch = (first | second).any(axis=0)
+        return bool(touch[0]), bool(touch[1])
 
     def holds(self, name: str | None) -> bool:
         """Both pads touch the object and it moves with the hand."""
         if name is None or not all(self.touching(name)):
             return False
         model, data = self.world.model, self.world.data
-        mujoco.mj_objectVelocity(
-            model, data, mujoco.mjtObj.mjOBJ_BODY, model.body(name).id, self._velocity, 0
-        )
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, self._body(name), self._velocity, 0)
         body = self._velocity[3:].copy()
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_SITE, self.site, self._velocity, 0)
         return bool(np.linalg.norm(body - self._velocity[3:]) < HELD_SPEED)

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
-from functools import cached_property
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -47,8 +46,7 @@ class MotionStatus(Enum):
 
 
 class Chunk:
-    """What happened in consecutive control cycles of one motion, one row per cycle; arrays are made when a
-    motion's judgement first asks for them.
+    """What happened in consecutive control cycles of one motion, one row per cycle.
 
     Attributes:
         first: the motion's cycle number of the first row (1 for the motion's first cycle).
@@ -58,32 +56,27 @@ class Chunk:
         finger_speed: the fingers' largest measured speed after each cycle, if recorded.
     """
 
-    def __init__(self, first: int, states: list, measured: np.ndarray, gripper: list | None, fingers) -> None:
-        self.first, self._states, self.measured = first, states, measured
-        self._gripper, self._fingers = gripper, fingers
+    def __init__(
+        self,
+        first: int,
+        states: np.ndarray,
+        measured: np.ndarray,
+        gripper: np.ndarray | None = None,
+        fingers: np.ndarray | None = None,
+    ) -> None:
+        """``states`` (n, 3, dofs): commanded positions, velocities, accelerations; ``gripper`` (n, 3, 1) the
+        same for the gripper; ``fingers`` (n, fingers) the fingers' measured velocities."""
+        self.first, self.measured = first, measured
+        self.commanded, self.commanded_velocity, self.commanded_acceleration = (
+            states[:, 0],
+            states[:, 1],
+            states[:, 2],
+        )
+        self.gripper = None if gripper is None else gripper[:, :2, 0]
+        self.finger_speed = None if fingers is None else np.abs(fingers).max(axis=1)
 
     def __len__(self) -> int:
-        return len(self._states)
-
-    @cached_property
-    def commanded(self) -> np.ndarray:
-        return np.array([state[0] for state in self._states])
-
-    @cached_property
-    def commanded_velocity(self) -> np.ndarray:
-        return np.array([state[1] for state in self._states])
-
-    @cached_property
-    def commanded_acceleration(self) -> np.ndarray:
-        return np.array([state[2] for state in self._states])
-
-    @cached_property
-    def gripper(self) -> np.ndarray:
-        return np.array([(state[0][0], state[1][0]) for state in self._gripper])
-
-    @cached_property
-    def finger_speed(self) -> np.ndarray:
-        return np.abs(self._fingers).max(axis=1)
+        return len(self.measured)
 
     @property
     def at_rest(self) -> np.ndarray:
@@ -178,6 +171,7 @@ class FollowReference(Motion):
 
     reference: Trajectory = None  # type: ignore[assignment]
     _targets: list = field(default_factory=list, init=False, repr=False)
+    _rest: tuple = field(default=(), init=False, repr=False)  # at rest at the last position
 
     def begin(self, executor: Executor) -> None:
         arm, reference = executor.arm, self.reference
@@ -195,6 +189,8 @@ class FollowReference(Motion):
         # Every sample made a feasible Ruckig target once, as plain lists: the per-cycle work is a lookup.
         feasible = executor.stream.feasible(positions, reference.velocities, reference.accelerations)
         self._targets = list(zip(*(array.tolist() for array in feasible), strict=True))
+        zeros = np.zeros(arm.dofs)
+        self._rest = tuple(a.tolist() for a in executor.stream.feasible(positions[-1], zeros, zeros))
 
     def command(self, executor: Executor) -> ruckig.Result:
         # Aim at the reference a few cycles ahead, to be reached exactly then: Ruckig plans a smooth
@@ -207,7 +203,7 @@ class FollowReference(Motion):
                 *self._targets[k], synchronize=False, minimum_duration=duration
             )
         # At or past its end, come to rest at the reference's last position.
-        return executor.stream.track(self.reference.positions[-1])
+        return executor.stream.track_feasible(*self._rest)
 
     def judge(self, executor: Executor, chunk: Chunk) -> None:
         positions = self.reference.positions

@@ -28,7 +28,7 @@ def test_a_move_respects_every_limit_and_arrives(executor):
     assert motion.status is MotionStatus.SUCCEEDED, motion.message
     np.testing.assert_allclose(executor.measured_position(), target, atol=executor.config.arrival_tolerance)
     assert limit_violations(executor.log, executor) == []
-    speeds = np.abs(np.array([entry.velocity for entry in executor.log])).max(axis=0)
+    speeds = np.abs(executor.log.velocities).max(axis=0)
     assert np.any(speeds > 0.9 * executor.arm.max_velocity), (
         "time-optimal: some joint reaches its speed limit"
     )

@@ -134,11 +134,11 @@ def test_grasp_then_place_recovers_from_a_slip(executor):
     set_task_values({"place": [0.54, -0.41]})
     root = grasp_then_place()
     runner = Runner(root, executor)
-    runner.tree.setup(executor=executor)
+    py_trees.trees.setup(root, executor=executor)
     slipped, transport_ticks = False, 0
     status = Status.RUNNING
     while status is Status.RUNNING and executor.time < 60:
-        runner.tree.tick()
+        root.tick_once()
         status = root.status
         transport_ticks += any(
             node.name == "transport" and node.status is Status.RUNNING for node in root.iterate()

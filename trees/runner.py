@@ -34,6 +34,7 @@ from besman.skills.errors import InputError
 from besman.skills.storage import check_schema_version, write_atomically
 
 SCHEMA_VERSION = 1
+_STATUS_NAMES = {status: status.value for status in Status}  # an Enum's .value is a slow descriptor
 
 
 @dataclass(frozen=True)
@@ -107,7 +108,6 @@ class Runner:
         self.records: list[dict] = []
         self.tick_seconds: list[float] = []  # wall time of each tick of the tree
         self.record_seconds: list[float] = []  # wall time of recording each tick
-        self.tree = py_trees.trees.BehaviourTree(root)
         self.paths = node_paths(root)
         self.nodes = [(node, self.paths[node.id]) for node in root.iterate()]  # the tree's shape is fixed
         model = executor.world.model  # where each free object's position sits in qpos
@@ -118,12 +118,14 @@ class Runner:
     def run(self) -> RunResult:
         """Runs to the end and returns the result (the records are in ``self.records``)."""
         py_trees.blackboard.Blackboard.enable_activity_stream(maximum_size=10000)
-        self.tree.setup(executor=self.executor)
+        py_trees.trees.setup(self.root, executor=self.executor)
         start_sim, start_wall = self.executor.time, time.perf_counter()
         status = Status.RUNNING
         while status is Status.RUNNING:
             begin = time.perf_counter()
-            self.tree.tick()
+            # The root's own tick, not BehaviourTree.tick: that walks the whole tree again after every tick
+            # for visitors, and the runner records the nodes itself.
+            self.root.tick_once()
             middle = time.perf_counter()
             status = self.root.status
             self.records.append(self._record())
@@ -160,7 +162,7 @@ class Runner:
         statuses, feedback = {}, {}
         for node, path in self.nodes:
             if node.status is not Status.INVALID:
-                statuses[path] = node.status.value
+                statuses[path] = _STATUS_NAMES[node.status]
                 if node.feedback_message:
                     feedback[path] = node.feedback_message
         stream = py_trees.blackboard.Blackboard.activity_stream
@@ -178,10 +180,10 @@ class Runner:
         world, gripper = self.executor.world, self.executor.gripper_opening
         qpos = world.data.qpos
         robot = {
-            "joints": [round(value, 5) for value in self.executor.arm.measured().tolist()],
+            "joints": self.executor.arm.measured().round(5).tolist(),
             "gripper": None if gripper is None else round(gripper, 5),
             "objects": {
-                name: [round(value, 5) for value in qpos[address : address + 3].tolist()]
+                name: qpos[address : address + 3].round(5).tolist()
                 for name, address in self._object_addresses.items()
             },
         }
