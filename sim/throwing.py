@@ -8,8 +8,10 @@ is 8 x 12 = 96-D. The DMPs start in the task's fixed wind-up pose at rest.
 tau is the target (x, y) on the floor. The landing point is the ball's first floor contact after the
 release, interpolated linearly between simulation steps (the centre crossing the ball's radius above the
 floor). The reward is -||tau - landing||^2. A throw that fails - the reference leaves the joint ranges or
-the speed limits, the ball is never released or never lands within the simulated time, the simulation
-diverges - gets ``FAILURE_REWARD`` (-1000) instead, far below any real throw, and a reference that violates
+the speed limits, the ball is never released, touches the robot between its release and its landing (the
+hand or arm swept back into it: contact is real once the ball has left the hand, see
+``robots/pa10/README.md``), never lands within the simulated time, the simulation diverges - gets
+``FAILURE_REWARD`` (-1000) instead, far below any real throw, and a reference that violates
 its constraints gets ``FAILURE_REWARD * (1 + violation)``, growing with the summed violation (rad, relative
 overspeed, release shortfall), so that an optimiser is led back to feasible throws.
 
@@ -299,15 +301,18 @@ class ThrowingTask:
         run = [i for i, failure in enumerate(failures) if failure is None]
         landings = np.zeros((len(thetas), 2))
         if run:
-            states, ball = self._rollout(controls if len(run) == len(controls) else controls[run])
-            for row, (failure, landing) in enumerate(self._landings(states, ball, release_step[run])):
+            states, ball, touches = self._rollout(controls if len(run) == len(controls) else controls[run])
+            for row, (failure, landing) in enumerate(
+                self._landings(states, ball, touches, release_step[run])
+            ):
                 failures[run[row]] = failure
                 if landing is not None:
                     landings[run[row]] = landing
         release_times = [None if step < 0 else float((step + 1) * self.timestep) for step in release_step]
         return landings, release_times, failures, violations
 
-    def _rollout(self, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _rollout(self, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """States (N, T, nstate), ball positions (N, T, 3) and ball-robot contact counts (N, T) per step."""
         threads = min(len(controls), os.cpu_count() or 1)
         if self._pool is None or len(self._datas) < threads:
             self.close()
@@ -330,16 +335,24 @@ class ThrowingTask:
             state=self._outputs[0],
             sensordata=self._outputs[1],
         )
-        return states, sensors[:, :, :3]
+        return states, sensors[:, :, :3], sensors[:, :, 3]
 
-    def _landings(self, states: np.ndarray, ball: np.ndarray, release_step: np.ndarray):
-        """(failure, landing) per rollout from its states (N, T, nstate) and ball positions (N, T, 3)."""
+    def _landings(self, states: np.ndarray, ball: np.ndarray, touches: np.ndarray, release_step: np.ndarray):
+        """(failure, landing) per rollout from its states (N, T, nstate), ball positions (N, T, 3) and
+        ball-robot contacts (N, T)."""
         steps = np.arange(states.shape[1])
         diverged = ~np.isfinite(states).all(axis=(1, 2))
         # After a bad acceleration MuJoCo resets the state, and time starts again from zero.
         reset = (np.abs(states[:, :, 0] - (steps + 1) * self.timestep) > 0.5 * self.timestep).any(axis=1)
-        touching = (steps[None, :] >= release_step[:, None]) & (ball[:, :, 2] <= self.ball_radius)
-        first = touching.argmax(axis=1)
+        flying = steps[None, :] >= release_step[:, None]
+        on_floor = flying & (ball[:, :, 2] <= self.ball_radius)
+        first = on_floor.argmax(axis=1)
+        # A ball that touches the robot between its release and its landing was hit (or caught) by the arm.
+        hit = (
+            flying
+            & (steps[None, :] < np.where(on_floor.any(axis=1), first, len(steps))[:, None])
+            & (touches > 0)
+        )
         results = []
         for i, k in enumerate(first):
             if diverged[i]:
@@ -348,7 +361,10 @@ class ThrowingTask:
                 results.append(
                     ("the simulation diverged (MuJoCo reset the state after a bad acceleration)", None)
                 )
-            elif not touching[i, k]:
+            elif hit[i].any():
+                after = (hit[i].argmax() - release_step[i]) * self.timestep
+                results.append((f"the ball touches the robot {after:.3f} s after the release", None))
+            elif not on_floor[i, k]:
                 results.append((f"the ball never lands within {self.config.duration:g} s", None))
             elif k == 0:
                 results.append(("the ball touches the floor at the release", None))

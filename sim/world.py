@@ -194,4 +194,14 @@ def throwing_world() -> World:
         objtype=mujoco.mjtObj.mjOBJ_XBODY,
         objname="ball",
     )
+    # How many contacts the ball has with the robot (the subtree of its base), every step.
+    touch = spec.add_sensor(
+        name="ball_touches_robot",
+        type=mujoco.mjtSensor.mjSENS_CONTACT,
+        objtype=mujoco.mjtObj.mjOBJ_BODY,
+        objname="ball",
+        reftype=mujoco.mjtObj.mjOBJ_XBODY,
+        refname="base_link",
+    )
+    touch.intprm[:3] = [1, 0, 1]  # data "found", no reduction, one slot
     return World(pa10, spec)

@@ -46,7 +46,7 @@ def test_landing_is_the_first_floor_contact(task):
     landings, _, failures, _ = task.throw(theta[None])
     assert failures == [None]
     controls, _, release_step, _ = task.controls(theta[None])
-    _, ball = task._rollout(controls)
+    _, ball, _ = task._rollout(controls)
     ground = np.flatnonzero(ball[0, :, 2] <= task.ball_radius + 1e-9)[0]
     assert ground > release_step[0]
     segment = ball[0, ground - 1 : ground + 1, :2]
@@ -54,6 +54,59 @@ def test_landing_is_the_first_floor_contact(task):
         np.min(np.linalg.norm(segment - landings[0], axis=1))
         < np.linalg.norm(segment[1] - segment[0]) + 1e-12
     )
+
+
+def _perturbed_throws(task, count: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return task.default_theta() + 0.3 * rng.normal(size=(count, task.n_params))
+
+
+def test_the_held_ball_touches_nothing(task):
+    """Held 2 mm above the palm, the ball has no contact with the robot until it is released, also in
+    perturbed throws (the weld sags a little under the swing)."""
+    controls, failures, release_step, _ = task.controls(_perturbed_throws(task, 60, seed=11))
+    valid = [i for i, failure in enumerate(failures) if failure is None]
+    _, _, touches = task._rollout(controls[valid])
+    held = np.arange(task.n_steps)[None, :] < release_step[valid][:, None]
+    assert len(valid) > 30
+    assert not (touches * held).any()
+
+
+def test_a_ball_that_touches_the_robot_after_release_is_a_failed_throw(task):
+    """Contact is real once the ball has left the hand: a throw whose arm sweeps back into the released ball
+    scores the failure penalty and says so. Checked independently by stepping the throw with mj_step and
+    looking for a ball-robot contact among MuJoCo's contacts after the release."""
+    import mujoco
+
+    thetas = _perturbed_throws(task, 40, seed=5)
+    result = task.evaluate(thetas, np.tile([-3.5, -3.6], (40, 1)))
+    hit = [
+        i for i, detail in enumerate(result.details) if (detail.failure or "").startswith("the ball touches")
+    ]
+    clean = [i for i, detail in enumerate(result.details) if detail.failure is None]
+    assert hit and clean
+    assert result.rewards[hit[0]] == FAILURE_REWARD
+    assert result.details[hit[0]].landing is None
+    model, data = task.model, mujoco.MjData(task.model)
+    robot = set(range(1, model.body("ball").id))  # the robot's bodies come before the ball
+    ball = model.body("ball").id
+
+    def touches_after_release(theta) -> bool:
+        controls, _, release_step, _ = task.controls(theta[None])
+        mujoco.mj_setState(model, data, task._initial_state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        for k in range(task.n_steps):
+            data.ctrl[:] = controls[0, k, : model.nu]
+            data.eq_active[task.weld] = controls[0, k, -1]
+            mujoco.mj_step(model, data)
+            if data.qpos[model.jnt_qposadr[model.body_jntadr[ball]] + 2] <= task.ball_radius:
+                return False  # landed first
+            bodies = model.geom_bodyid[data.contact.geom[: data.ncon]]
+            if k >= release_step[0] and any(ball in pair and set(pair) & robot for pair in bodies.tolist()):
+                return True
+        return False
+
+    assert touches_after_release(thetas[hit[0]])
+    assert not touches_after_release(thetas[clean[0]])
 
 
 def test_a_throw_that_never_releases_gets_the_failure_penalty(task):
