@@ -286,6 +286,60 @@ def _demos_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _pool_ls(args: argparse.Namespace) -> int:
+    from besman.skills.pool import PoolError, SkillTemplatePool
+
+    pool = SkillTemplatePool(args.directory)
+    if not Path(args.directory).is_dir():
+        raise InputError(f"{args.directory}: no such pool directory")
+    broken = 0
+    for name in pool:
+        try:
+            template = pool[name]
+        except PoolError as error:
+            broken += 1
+            print(f"{name}\tunreadable: {error}")
+            continue
+        box = ", ".join(f"{n} [{lo:g}, {hi:g}]" for n, (lo, hi) in template.box.as_dict().items())
+        size = template.thetas.shape[1]
+        print(f"{name}\t{template.task or '-'}\tK={len(template.taus)}\ttheta {size}\ttau {box}")
+    return 1 if broken else 0
+
+
+def _pool_show(args: argparse.Namespace) -> int:
+    from besman.skills.pool import SkillTemplatePool, summary
+
+    pool = SkillTemplatePool(args.directory)
+    if args.name not in pool:
+        raise InputError(
+            f"{args.directory}: the pool has no template {args.name!r} (has: {', '.join(pool) or 'none'})"
+        )
+    facts = summary(pool[args.name])
+    if args.json:
+        print(json.dumps(facts, indent=2))
+    else:
+        for key, value in facts.items():
+            if key != "hyperparameters":
+                print(f"{key}\t{value}")
+    return 0
+
+
+def _experiment_throwing(args: argparse.Namespace) -> int:
+    from besman.learning.throwing_experiment import Experiment, ExperimentConfig
+
+    config = (
+        ExperimentConfig.quick(args.seeds or 1) if args.quick else ExperimentConfig(seeds=args.seeds or 3)
+    )
+    results = Experiment(config, Path(args.out), backend=args.backend).run()
+    for claim, facts in results["claims"].items():
+        numbers = ", ".join(
+            f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in facts.items() if k != "holds"
+        )
+        print(f"{'holds' if facts['holds'] else 'FAILS'}\t{claim}: {numbers}")
+    print(f"wrote {Path(args.out) / 'results.json'}, fig5_top.png, fig5_bottom.png")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="besman", description=__doc__)
     parser.add_argument("--version", action="version", version=f"besman {__version__}")
@@ -364,6 +418,28 @@ def build_parser() -> argparse.ArgumentParser:
     demos_show.add_argument("file")
     demos_show.add_argument("--json", action="store_true")
     demos_show.set_defaults(handler=_demos_show)
+
+    pool = commands.add_parser("pool", help="inspect a skill template pool (a directory)")
+    pool_commands = pool.add_subparsers(dest="pool_command", metavar="ACTION", required=True)
+    pool_ls = pool_commands.add_parser("ls", help="the templates in a pool, one per line")
+    pool_ls.add_argument("directory")
+    pool_ls.set_defaults(handler=_pool_ls)
+    pool_show = pool_commands.add_parser("show", help="one template: task, tau box, training set, kernel")
+    pool_show.add_argument("directory")
+    pool_show.add_argument("name")
+    pool_show.add_argument("--json", action="store_true")
+    pool_show.set_defaults(handler=_pool_show)
+
+    experiment = commands.add_parser("experiment", help="the paper's experiments")
+    experiment_commands = experiment.add_subparsers(dest="experiment_command", metavar="NAME", required=True)
+    throwing = experiment_commands.add_parser(
+        "throwing", help="skill templates on PA-10 throwing (Fig. 5): results.json and two plots"
+    )
+    throwing.add_argument("--quick", action="store_true", help="a small run (3 x 3 grid, K up to 4; minutes)")
+    throwing.add_argument("--seeds", type=int, help="independent repetitions (default 3; 1 with --quick)")
+    throwing.add_argument("--backend", choices=("threads", "ray"), default="threads")
+    throwing.add_argument("--out", required=True, help="the results directory (an interrupted run resumes)")
+    throwing.set_defaults(handler=_experiment_throwing)
     return parser
 
 

@@ -1,11 +1,14 @@
-"""Learning from demonstrations: recordings, smoothing, segmentation, labelling, imitation.
+"""Learning: from demonstrations (recordings, smoothing, segmentation, labelling, imitation) and by trial.
 
 :mod:`besman.learning.demonstration` (recordings and their loaders),
 :mod:`besman.learning.preprocessing` (Kalman/RTS smoothing, gaps, resampling, hand poses) and
 :mod:`besman.learning.segmentation` (exact Bayesian change-point inference: evidences, MAP, change-point
 probabilities, posterior samples; ``segment(demo)``), :mod:`besman.learning.segmentation_plot`,
-:mod:`besman.learning.labelling` (building blocks: clustering, few-shot 1-NN) and
-:mod:`besman.learning.imitation` (a Cartesian-DMP primitive per building block).
+:mod:`besman.learning.labelling` (building blocks: clustering, few-shot 1-NN),
+:mod:`besman.learning.imitation` (a Cartesian-DMP primitive per building block),
+:mod:`besman.learning.policy_search` (CMA-ES and xNES refining theta on batched rollouts) and
+:mod:`besman.learning.throwing_experiment` (the paper's skill-template experiment, drawn by
+:mod:`besman.learning.throwing_plots`; :mod:`besman.learning.figures` writes PNGs).
 """
 
 from besman.learning.demonstration import Demonstration, DemonstrationError, Segment, load
@@ -18,10 +21,13 @@ from besman.learning.labelling import (
     label_few_shot,
     segments_of,
 )
+from besman.learning.policy_search import CMAES, XNES, WarmStart, make_optimizer, policy_search
 from besman.learning.preprocessing import SmoothingConfig, hand_pose, resample, smooth
 from besman.learning.segmentation import Segmentation, SegmentationPrior, SegmentModel, segment
 
 __all__ = [
+    "CMAES",
+    "XNES",
     "Demonstration",
     "DemonstrationError",
     "DemonstrationSegment",
@@ -30,6 +36,7 @@ __all__ = [
     "Segmentation",
     "SegmentationPrior",
     "SmoothingConfig",
+    "WarmStart",
     "cluster",
     "ground_truth_segments",
     "grouping_accuracy",
@@ -37,6 +44,8 @@ __all__ = [
     "imitate",
     "label_few_shot",
     "load",
+    "make_optimizer",
+    "policy_search",
     "resample",
     "segment",
     "segments_of",

@@ -6,17 +6,11 @@ are flat, and a boundary belongs in the valleys between bumps.
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")  # files only, no display
-import matplotlib.pyplot as plt
-
 from besman.learning.demonstration import Demonstration
+from besman.learning.figures import plt, save_png
 from besman.learning.segmentation import Segmentation
-from besman.skills.storage import write_atomically
 
 
 def plot_segmentation(demo: Demonstration, segmentation: Segmentation, path: str | Path) -> Path:
@@ -37,7 +31,4 @@ def plot_segmentation(demo: Demonstration, segmentation: Segmentation, path: str
         f"{Path(demo.source).name if demo.source else 'demonstration'}: {len(segmentation)} segments"
     )
     axes.legend(loc="upper right")
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=100)
-    plt.close(figure)
-    return write_atomically(path, buffer.getvalue())
+    return save_png(figure, path)

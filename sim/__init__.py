@@ -17,9 +17,9 @@ from besman.sim.evaluation import Evaluation
 from besman.sim.executor import Executor, ExecutorConfig
 from besman.sim.motions import MotionStatus
 from besman.sim.pick_place import PickPlaceTask
-from besman.sim.tasks import TaskBounds
 from besman.sim.throwing import ThrowingConfig, ThrowingTask
 from besman.sim.world import World, tabletop_world, throwing_world
+from besman.skills.tasks import TaskBounds
 
 __all__ = [
     "Arm",

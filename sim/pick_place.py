@@ -32,8 +32,8 @@ from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_process
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.manipulation import OPEN, PickPlacePlan, PlanningError, plan_pick, plan_place
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
-from besman.sim.tasks import TaskBounds
 from besman.sim.world import DEFAULT_BOX, SHELF, TABLE, GraspableObject, World, tabletop_world
+from besman.skills.tasks import TaskBounds
 from besman.skills.validation import finite_array
 
 PICK_PLACE_BOUNDS = TaskBounds(

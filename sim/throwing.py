@@ -38,10 +38,10 @@ import numpy as np
 from mujoco import rollout
 
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_on_ray
-from besman.sim.tasks import TaskBounds
 from besman.sim.world import throwing_world
 from besman.skills import DMP, DMPSettings, quaternion
 from besman.skills.errors import InputError
+from besman.skills.tasks import TaskBounds
 from besman.skills.validation import finite_array
 
 FAILURE_REWARD = -1000.0

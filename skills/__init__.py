@@ -6,11 +6,15 @@
   the forcing term and the transformation system, derived and cited.
 - :mod:`besman.skills.primitive` - a DMP with its metadata, saved as JSON + NPZ (:mod:`besman.skills.storage`:
   atomic writes, JSON fields and schema versions checked, never pickle).
+- :mod:`besman.skills.template` - skill templates Psi = (Theta, Omega): a Gaussian process per theta
+  dimension over the task parameters (:mod:`besman.skills.tasks`: task boxes), and exploration covariances;
+  :mod:`besman.skills.pool` - the template pool, a directory of JSON + NPZ entries, a mapping of names to
+  templates.
 - :mod:`besman.skills.quaternion` - unit quaternions (w, x, y, z); :mod:`besman.skills.validation` - argument
   checks; :mod:`besman.skills.errors` - :class:`BesmanError`, the base of every error besman raises for bad
   input.
 
-Imports numpy and scipy and no other besman package, so every other besman package may use it.
+Imports numpy, scipy and scikit-learn and no other besman package, so every other besman package may use it.
 """
 
 from besman.skills.cartesian_dmp import CartesianDMP, CartesianTrajectory
@@ -18,7 +22,10 @@ from besman.skills.dmp import DMP, Trajectory
 from besman.skills.dmp_core import DMPSettings, Primitive
 from besman.skills.errors import BesmanError, InputError
 from besman.skills.forcing import ForcingBasis
+from besman.skills.pool import PoolError, SkillTemplatePool
 from besman.skills.primitive import MovementPrimitive
+from besman.skills.tasks import TaskBounds
+from besman.skills.template import SkillTemplate
 
 __all__ = [
     "DMP",
@@ -29,6 +36,10 @@ __all__ = [
     "ForcingBasis",
     "InputError",
     "MovementPrimitive",
+    "PoolError",
     "Primitive",
+    "SkillTemplate",
+    "SkillTemplatePool",
+    "TaskBounds",
     "Trajectory",
 ]

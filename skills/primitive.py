@@ -99,18 +99,12 @@ class MovementPrimitive:
     def save(self, path: str | Path) -> Path:
         """Writes ``path`` (``.json``) and its arrays beside it (``.npz``); returns the JSON path."""
         json_path = _json_path(path)
-        config, arrays = _dmp_state(self.dmp)
+        document, arrays = primitive_parts(self)
         data = npz_bytes(arrays)
         document = {
             "schema_version": SCHEMA_VERSION,
             "kind": "movement_primitive",
-            "name": self.name,
-            "space": self.space,
-            "robot": self.robot,
-            "group": self.group,
-            "frame": self.frame,
-            "provenance": self.provenance,
-            "dmp": config,
+            **document,
             "arrays": {"file": json_path.with_suffix(".npz").name, "sha256": sha256(data)},
         }
         write_atomically(json_path.with_suffix(".npz"), data)
@@ -133,20 +127,42 @@ class MovementPrimitive:
         arrays = read_npz(
             json_path.parent / npz_name, require_field(reference, "sha256", str, f"{where}: arrays")
         )
-        try:
-            dmp = _restore_dmp(require_field(document, "dmp", dict, where), arrays)
-            return cls(
-                dmp=dmp,
-                name=require_field(document, "name", str, where),
-                space=require_field(document, "space", str, where),
-                robot=optional_field(document, "robot", str, where),
-                group=optional_field(document, "group", str, where),
-                frame=optional_field(document, "frame", str, where),
-                provenance=require_field(document, "provenance", dict, where),
-            )
-        except ValueError as error:
-            message = str(error)
-            raise InputError(message if message.startswith(where) else f"{where}: {message}") from None
+        return primitive_from_parts(document, arrays, where)
+
+
+def primitive_parts(primitive: MovementPrimitive) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """A primitive as a JSON-compatible document (metadata and the DMP's configuration) and its arrays (what
+    :meth:`MovementPrimitive.save` writes, and what files that embed a primitive store)."""
+    config, arrays = _dmp_state(primitive.dmp)
+    document = {
+        "name": primitive.name,
+        "space": primitive.space,
+        "robot": primitive.robot,
+        "group": primitive.group,
+        "frame": primitive.frame,
+        "provenance": primitive.provenance,
+        "dmp": config,
+    }
+    return document, arrays
+
+
+def primitive_from_parts(
+    document: dict[str, Any], arrays: dict[str, np.ndarray], where: str
+) -> MovementPrimitive:
+    """The primitive of :func:`primitive_parts`; an :class:`InputError` starts with ``where``."""
+    try:
+        return MovementPrimitive(
+            dmp=_restore_dmp(require_field(document, "dmp", dict, where), arrays),
+            name=require_field(document, "name", str, where),
+            space=require_field(document, "space", str, where),
+            robot=optional_field(document, "robot", str, where),
+            group=optional_field(document, "group", str, where),
+            frame=optional_field(document, "frame", str, where),
+            provenance=require_field(document, "provenance", dict, where),
+        )
+    except ValueError as error:
+        message = str(error)
+        raise InputError(message if message.startswith(where) else f"{where}: {message}") from None
 
 
 def _json_path(path: str | Path) -> Path:

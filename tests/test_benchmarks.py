@@ -51,6 +51,20 @@ def test_trees_benchmark_compares_the_tree_with_raw_physics():
 
 
 @pytest.mark.slow
+def test_policy_search_benchmark_sets_the_optimisers_beside_their_rollouts():
+    report = run_benchmark("policy_search.py", "--generations", "2")
+    assert report["benchmark"] == "policy_search" and report["dimensions"] == 96
+    for method in ("cmaes", "xnes"):
+        numbers = report[method]
+        assert numbers["population"] == 17
+        assert 0 < numbers["optimizer_ms_per_generation"] < numbers["rollouts_ms_per_generation"]
+        assert numbers["overhead"] == pytest.approx(
+            numbers["optimizer_ms_per_generation"] / numbers["rollouts_ms_per_generation"]
+        )
+        assert numbers["target_overhead"] == 0.1
+
+
+@pytest.mark.slow
 def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings):
     report = run_benchmark("segmentation.py", "--data", str(shared_recordings))
     assert report["recordings"] == 15

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import besman.robots as robots
+from besman.skills import quaternion
 from besman.skills.transformation import minimum_jerk
 
 # DFKI's joint-limit configuration (rad, rad/s), as in shared/reference/robots.md.
@@ -231,9 +232,23 @@ def test_pa10_flange_height_in_the_zero_pose():
     np.testing.assert_allclose(data.site("flange").xpos, [0, 0, 1.345], atol=1e-12)
 
 
-def test_pa10_releases_the_ball_when_the_weld_switches_off():
+def _pa10_holding_the_ball_in(pose):
+    """The PA-10 at rest in ``pose`` (7 joint values) with the ball welded in its hand."""
     pa10 = robots.load("pa10")
     model, data = pa10.model, pa10.make_data()
+    data.qpos[:7] = data.ctrl[:7] = pose
+    mujoco.mj_kinematics(model, data)
+    holder = data.site("ball_holder")
+    ball = model.jnt_qposadr[model.joint("ball").id]
+    data.qpos[ball : ball + 3] = holder.xpos
+    data.qpos[ball + 3 : ball + 7] = quaternion.from_matrix(holder.xmat.reshape(3, 3))
+    mujoco.mj_forward(model, data)
+    return pa10, model, data
+
+
+def test_pa10_releases_the_ball_when_the_weld_switches_off():
+    """Hand pointing down: held while the weld is on, free fall once it is off."""
+    pa10, model, data = _pa10_holding_the_ball_in([0, 0.8, 0, 1.2, 0, np.pi - 2.0, 0])
     weld = model.equality("ball_weld").id
     assert pa10.group("release").equalities == ("ball_weld",)
     holder = data.site("ball_holder").xpos.copy()
@@ -246,6 +261,22 @@ def test_pa10_releases_the_ball_when_the_weld_switches_off():
     fallen = holder[2] - data.body("ball").xpos[2]
     assert fallen == pytest.approx(0.5 * 9.81 * 0.2**2, rel=0.05), "free fall once released, hand untouched"
     np.testing.assert_allclose(data.site("ball_holder").xpos, holder, atol=1e-3)
+
+
+def test_pa10_held_ball_clears_the_palm_and_a_released_one_lands_on_it():
+    """Palm up (the zero pose): the held ball floats 2 mm above the palm, touching nothing; released, it
+    drops onto the palm and stays there (contact is real once it has left the hand)."""
+    _, model, data = _pa10_holding_the_ball_in(np.zeros(7))
+    ball = model.body("ball").id
+    for _ in range(200):
+        mujoco.mj_step(model, data)
+    assert not any(ball in model.geom_bodyid[pair] for pair in data.contact.geom[: data.ncon])
+    data.eq_active[model.equality("ball_weld").id] = 0
+    for _ in range(500):
+        mujoco.mj_step(model, data)
+    palm_top = data.body("hand").xpos[2] + 0.02
+    assert data.body("ball").xpos[2] == pytest.approx(palm_top + 0.035, abs=1e-3)  # resting on the palm
+    assert any(ball in model.geom_bodyid[pair] for pair in data.contact.geom[: data.ncon])
 
 
 def test_aila_gripper_holds_a_box_lifted_and_moved():

@@ -19,9 +19,10 @@ Node types (:data:`~besman.trees.nodes.NODE_TYPES`, derived from the classes): t
 leaves (``ExecutePrimitive``, ``InstantiateSkillTemplate``, ``Gripper``, ``ObjectGrasped``, ``ObjectAt``,
 ``AtPose``, ``Wait``, ``PerceiveObject``, ``PlanGrasp``, ``PlanPlace``) and subtree idioms (``Grasp``,
 ``Place``, ``GraspThenPlace``). Primitives are referenced by the path of their JSON file; templates by
-``module:attribute`` (an object with ``instantiate(tau)``), or a pool (``pool: module:attribute``, a mapping
-of names to templates) and a ``template_name``. Leaves with blackboard roles take ``namespace`` and
-``remap`` (role -> key).
+``module:attribute`` (an object with ``instantiate(tau)``), or a pool and a ``template_name``: ``pool:``
+names a skill template pool directory (relative to the tree file,
+:class:`~besman.skills.pool.SkillTemplatePool`) or a ``module:attribute`` mapping of names to templates.
+Leaves with blackboard roles take ``namespace`` and ``remap`` (role -> key).
 
 :func:`load_tree` checks the whole file first - unknown node types, missing or mistyped parameters, missing
 files, cycles of includes - and reports the file, line and path of the first problem (:class:`TreeFileError`).
@@ -40,6 +41,7 @@ import yaml
 
 from besman.skills import MovementPrimitive
 from besman.skills.errors import BesmanError
+from besman.skills.pool import SkillTemplatePool
 from besman.trees.nodes import NODE_TYPES, NodeType, Param
 from besman.trees.timing import SimTimeout
 
@@ -247,6 +249,11 @@ class _Builder:
             except ValueError as error:
                 raise self._error(node, path, where, str(error)) from None
             return primitive
+        if kind == "pool" and ":" not in text:  # a pool directory, relative to the tree file
+            directory = path.parent / text
+            if not directory.is_dir():
+                raise self._error(node, path, where, f"no pool directory {str(directory)!r}")
+            return SkillTemplatePool(directory)
         if kind in ("template", "pool"):
             module, _, attribute = text.partition(":")
             try:

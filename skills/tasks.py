@@ -56,5 +56,10 @@ class TaskBounds:
             )
         return taus
 
+    def normalise(self, taus: np.ndarray) -> np.ndarray:
+        """taus mapped to the unit box ([0, 1] per parameter; beyond it outside the box)."""
+        low = np.asarray(self.low, dtype=float)
+        return (np.asarray(taus, dtype=float) - low) / np.maximum(np.asarray(self.high) - low, 1e-300)
+
     def as_dict(self) -> dict:
         return {name: [lo, hi] for name, lo, hi in zip(self.names, self.low, self.high, strict=True)}
