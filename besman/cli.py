@@ -1,4 +1,8 @@
-"""besman: robots learn reusable manipulation skills and run them as behaviour trees (the command line)."""
+"""besman: robots learn reusable manipulation skills and run them as behaviour trees (the command line).
+
+One module on purpose (over 450 lines): each subcommand is a handler of a few lines that imports its package
+only when it runs (``besman --help`` stays fast), beside the parser that names them all.
+"""
 
 from __future__ import annotations
 

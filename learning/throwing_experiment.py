@@ -221,6 +221,26 @@ class Experiment:
 
         return self._stage(f"seed{seed}_curve_{method}", compute)["distances"]
 
+    def diagnose_training(self, seed: int) -> dict:
+        """How well a template of all K_max training tasks can predict: the training thetas' own distances,
+        the prediction's distances at those same targets (in sample), whether theta distances follow target
+        distances, how far the thetas drifted from theta_0, and the GPs' median noise-to-amplitude ratio."""
+        training, template = self.training(seed), self.template(seed, max(self.config.ks))
+        taus, thetas = training["taus"], training["thetas"]
+        predicted = _distances(self._rewards(template.predict(taus)[0], taus))
+        pairs = np.triu_indices(len(taus), 1)
+        tau_gaps = np.linalg.norm(taus[:, None] - taus[None], axis=2)[pairs]
+        theta_gaps = np.linalg.norm(thetas[:, None] - thetas[None], axis=2)[pairs]
+        log_amplitude, log_noise = template.hyperparameters[:, 0], template.hyperparameters[:, -1]
+        return {
+            "seed": seed,
+            "trained_distance": float(_distances(training["rewards"]).mean()),
+            "predicted_distance_in_sample": float(predicted.mean()),
+            "theta_vs_tau_distance_correlation": float(np.corrcoef(tau_gaps, theta_gaps)[0, 1]),
+            "theta_drift_from_theta0": float(np.linalg.norm(thetas - self.theta0, axis=1).mean()),
+            "median_noise_to_amplitude": float(np.median(np.exp(log_noise - log_amplitude))),
+        }
+
     # -- the whole run -------------------------------------------------------------------------------------
 
     def run(self) -> dict:
@@ -248,6 +268,7 @@ class Experiment:
                 for method, values in curves.items()
             },
         }
+        results["training"] = [self.diagnose_training(seed) for seed in seeds]
         results["claims"] = claims(results)
         write_atomically(self.directory / "results.json", (json.dumps(results, indent=2) + "\n").encode())
         from besman.learning.throwing_plots import plot_results  # matplotlib only when plotting

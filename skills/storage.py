@@ -20,9 +20,14 @@ import numpy as np
 
 from besman.skills.errors import BesmanError, InputError
 
+# The process's umask, read once (reading it means setting it): temporary files are made private (0600),
+# and the renamed file gets the permissions an ordinary new file would have.
+_UMASK = os.umask(0o022)
+os.umask(_UMASK)
+
 
 def write_atomically(path: str | Path, data: bytes) -> Path:
-    """Writes ``data`` to ``path`` via a temporary file and a rename."""
+    """Writes ``data`` to ``path`` via a temporary file and a rename (permissions as for a new file)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -31,6 +36,7 @@ def write_atomically(path: str | Path, data: bytes) -> Path:
             file.write(data)
             file.flush()
             os.fsync(file.fileno())
+        os.chmod(temporary, 0o666 & ~_UMASK)
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)

@@ -33,6 +33,11 @@ def test_the_quick_experiment_writes_results_and_both_figures_and_resumes(tmp_pa
     assert set(results["claims"]) == set(claims(results)) and len(results["claims"]) == 5
     assert all(isinstance(claim["holds"], bool) for claim in results["claims"].values())
     assert stdout.count("\t") >= 5
+    (training,) = results["training"]  # one seed
+    assert training["seed"] == 0 and training["trained_distance"] > 0
+    assert (
+        -1 <= training["theta_vs_tau_distance_correlation"] <= 1 and training["median_noise_to_amplitude"] > 0
+    )
     for name in ("fig5_top.png", "fig5_bottom.png"):
         with Image.open(out / name) as image:
             assert image.format == "PNG" and image.size[0] > 500
