@@ -15,6 +15,7 @@ from pathlib import Path
 
 from besman._version import __version__
 from besman.skills.errors import InputError
+from besman.skills.storage import check_output
 
 
 def _robot_table(name: str) -> dict:
@@ -114,10 +115,8 @@ def _tree_render(args: argparse.Namespace) -> int:
     from besman.skills.storage import write_atomically
     from besman.trees import load_tree
 
-    out = Path(args.out)
     formats = {".svg": "svg", ".png": "png", ".dot": "raw"}
-    if out.suffix.lower() not in formats:
-        raise InputError(f"{out}: the output file must end in .svg, .png or .dot")
+    out = check_output(args.out, option="--out", suffixes=tuple(formats), inputs=(args.file,))
     graph = py_trees.display.dot_tree(load_tree(args.file))
     try:
         data = graph.create(format=formats[out.suffix.lower()])
@@ -157,6 +156,8 @@ def _print_summary(summary: dict, as_json: bool) -> None:
 def _run(args: argparse.Namespace) -> int:
     from besman.trees.tabletop import run_on_tabletop
 
+    if args.log:
+        check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,))
     summary = run_on_tabletop(args.file, _parse_sets(args.set), seed=args.seed, log=args.log)
     _print_summary(summary, args.json)
     return 0 if summary["status"] == "SUCCESS" else 1
@@ -166,6 +167,8 @@ def _demo(args: argparse.Namespace) -> int:
     from besman.trees import grasp_then_place
     from besman.trees.tabletop import run_on_tabletop
 
+    if args.log:
+        check_output(args.log, option="--log", suffixes=(".jsonl",))
     print("AILA grasps the box on the table and places it on the shelf (grasp-then-place tree)")
     summary = run_on_tabletop(
         grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, log=args.log
@@ -198,6 +201,10 @@ def _segment(args: argparse.Namespace) -> int:
     from besman.learning import load
     from besman.learning.segmentation import segment
 
+    if args.plot:
+        check_output(
+            args.plot, option="--plot", suffixes=(".png",), inputs=(args.file, *(args.examples or ()))
+        )
     demo = load(args.file)
     segmentation = segment(demo, marker=args.marker)
     labels = _few_shot_labels(args, demo, segmentation) if args.examples else [None] * len(segmentation)

@@ -15,7 +15,7 @@ import numpy as np
 
 from besman.robots.robot import Robot
 from besman.skills.errors import InputError
-from besman.skills.storage import write_atomically
+from besman.skills.storage import check_output, write_atomically
 
 
 def render(
@@ -61,11 +61,8 @@ def render(
 
 
 def png_path(path: str | Path) -> Path:
-    """``path`` as a Path, if it names a PNG file; a ValueError otherwise."""
-    path = Path(path)
-    if path.suffix.lower() != ".png":
-        raise InputError(f"{path}: the output file must end in .png")
-    return path
+    """``path`` as a Path, if it names a PNG file that can be written; a ValueError otherwise."""
+    return check_output(path, option="--out", suffixes=(".png",))
 
 
 def save_png(image: np.ndarray, path: str | Path) -> Path:

@@ -44,6 +44,32 @@ def write_atomically(path: str | Path, data: bytes) -> Path:
     return path
 
 
+def check_output(
+    path: str | Path, *, option: str, suffixes: tuple[str, ...] = (), inputs: tuple[str | Path, ...] = ()
+) -> Path:
+    """``path`` as a Path once it is known to be writable as an output named ``option`` (e.g. "--plot"):
+    with one of ``suffixes`` (if given), not a directory, in a writable folder (or one that can be made),
+    and none of the
+    command's ``inputs`` (an output never replaces what the command reads). Checked before any work, so that
+    a long computation is not lost at the end."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{option} {path}: a directory; give a file name")
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise InputError(f"{option} {path}: the file must end in {' or '.join(suffixes)}")
+    for source in inputs:
+        if Path(source).exists() and path.exists() and os.path.samefile(source, path):
+            raise InputError(f"{option} {path}: that is an input of this command; it would be overwritten")
+    folder = path.absolute().parent  # missing folders are made when the file is written
+    while not folder.exists():
+        folder = folder.parent
+    if not folder.is_dir():
+        raise InputError(f"{option} {path}: {str(folder)!r} is a file, not a folder")
+    if not os.access(folder, os.W_OK):
+        raise InputError(f"{option} {path}: the folder {str(folder)!r} is not writable")
+    return path
+
+
 def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)

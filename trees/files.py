@@ -46,6 +46,10 @@ from besman.trees.nodes import NODE_TYPES, NodeType, Param
 from besman.trees.timing import SimTimeout
 
 FORMAT_VERSION = 1
+# Bounds checked before a file is built: a tree file is a few kilobytes; these leave room for generated ones
+# and refuse what would hang or exhaust memory (deep nesting overflows Python's stack).
+MAX_FILE_BYTES = 1_000_000
+MAX_NESTING = 200  # YAML levels (a tree level takes about four)
 
 
 class TreeFileError(BesmanError):
@@ -68,15 +72,24 @@ class _Builder:
         if resolved in stack:
             chain = " -> ".join(str(p) for p in (*stack, resolved))
             raise TreeFileError(f"{path}: includes form a cycle: {chain}")
+        where = f"{stack[-1]}: " if stack else ""
         try:
+            if path.stat().st_size > MAX_FILE_BYTES:
+                raise TreeFileError(f"{where}{path}: larger than {MAX_FILE_BYTES} bytes; not a tree file")
             text = path.read_text(encoding="utf-8")
         except FileNotFoundError:
-            where = f"{stack[-1]}: " if stack else ""
             raise TreeFileError(f"{where}{path}: no such file") from None
+        except IsADirectoryError:
+            raise TreeFileError(f"{where}{path}: a directory, not a tree file") from None
+        except UnicodeDecodeError as error:
+            raise TreeFileError(f"{where}{path}: not a text file (byte {error.start} is not UTF-8)") from None
         return self.document(text, path, remap, (*stack, resolved))
 
     def document(self, text: str, path: Path, remap: Mapping[str, str], stack: tuple[Path, ...]):
+        if len(text) > MAX_FILE_BYTES:
+            raise TreeFileError(f"{path}: larger than {MAX_FILE_BYTES} characters; not a tree file")
         try:
+            self._check_events(text, path)
             node = yaml.compose(text, Loader=yaml.SafeLoader)
         except yaml.YAMLError as error:
             mark = getattr(error, "problem_mark", None)
@@ -99,6 +112,26 @@ class _Builder:
         if "root" not in top:
             raise TreeFileError(f"{path}:{self._line(node)}: missing 'root'")
         return self.node(top["root"], path, "root", remap, stack)
+
+    @staticmethod
+    def _check_events(text: str, path: Path) -> None:
+        """Refuses anchors and aliases (a few lines of them expand to gigabytes: "billion laughs") and
+        nesting deeper than :data:`MAX_NESTING`, in one pass over the parser's events."""
+        depth = 0
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
+                raise TreeFileError(
+                    f"{path}:{event.start_mark.line + 1}: anchors and aliases (& and *) are not supported "
+                    "in tree files; use include to reuse a subtree"
+                )
+            if isinstance(event, yaml.CollectionStartEvent):
+                depth += 1
+                if depth > MAX_NESTING:
+                    raise TreeFileError(
+                        f"{path}:{event.start_mark.line + 1}: nested deeper than {MAX_NESTING} levels"
+                    )
+            elif isinstance(event, yaml.CollectionEndEvent):
+                depth -= 1
 
     # -- YAML helpers --------------------------------------------------------------------------------------
 

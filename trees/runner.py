@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -53,14 +54,14 @@ def node_paths(root: py_trees.behaviour.Behaviour) -> dict[Any, str]:
     """A unique path per node ("root/child/grandchild", with [i] when siblings share a name)."""
     paths: dict[Any, str] = {}
 
-    def visit(node, path):
+    pending = [(root, root.name)]  # a stack, not recursion: any depth, linear time
+    while pending:
+        node, path = pending.pop()
         paths[node.id] = path
-        names = [child.name for child in node.children]
+        names = Counter(child.name for child in node.children)
         for index, child in enumerate(node.children):
-            label = child.name if names.count(child.name) == 1 else f"{child.name}[{index}]"
-            visit(child, f"{path}/{label}")
-
-    visit(root, root.name)
+            label = child.name if names[child.name] == 1 else f"{child.name}[{index}]"
+            pending.append((child, f"{path}/{label}"))
     return paths
 
 

@@ -1,0 +1,98 @@
+"""Bad input on purpose: every case gets a clear error naming the file, field or value, before any work."""
+
+import textwrap
+import time
+from pathlib import Path
+
+import py_trees
+import pytest
+
+from besman.trees import TreeFileError, load_tree
+from besman.trees.runner import node_paths
+from tests.helpers import run_cli
+
+TREES = Path(__file__).resolve().parents[1] / "examples" / "trees"
+
+
+def write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def test_yaml_anchors_and_aliases_are_refused_before_they_expand(tmp_path):
+    """A "billion laughs": nine levels of ten aliases each would expand to 10^9 nodes."""
+    lines = ["besman_tree: 1", 'a0: &a0 ["x"]']
+    lines += [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 10)}]" for i in range(1, 10)]
+    lines.append("root: {Wait: {name: w, duration: 0}}")
+    path = tmp_path / "laughs.yaml"
+    path.write_text("\n".join(lines))
+    start = time.perf_counter()
+    with pytest.raises(TreeFileError, match=r"laughs\.yaml:2: anchors and aliases .* are not supported"):
+        load_tree(path)
+    assert time.perf_counter() - start < 5.0
+
+
+def test_deep_nesting_binary_and_huge_files_are_refused_by_name(tmp_path):
+    deep = tmp_path / "deep.yaml"
+    deep.write_text("besman_tree: 1\nroot: " + "{Inverter: {name: i, child: " * 300 + "{}" + "}}" * 300)
+    with pytest.raises(TreeFileError, match=r"deep\.yaml:2: nested deeper than 200 levels"):
+        load_tree(deep)
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(b"besman_tree: 1\nroot: \xff\xfe\x00")
+    with pytest.raises(TreeFileError, match=r"binary\.yaml: not a text file \(byte 21 is not UTF-8\)"):
+        load_tree(binary)
+    huge = tmp_path / "huge.yaml"
+    huge.write_text("#" * 1_000_001)
+    with pytest.raises(TreeFileError, match=r"huge\.yaml: larger than 1000000 bytes"):
+        load_tree(huge)
+    with pytest.raises(TreeFileError, match="a directory, not a tree file"):
+        load_tree(tmp_path)
+
+
+def test_node_paths_are_linear_in_the_number_of_nodes():
+    """10^5 siblings of one name: counting names per child was quadratic (minutes); a Counter is linear."""
+    root = py_trees.composites.Sequence("root", memory=True)
+    root.children = [py_trees.behaviours.Success("same") for _ in range(100_000)]
+    for child in root.children:
+        child.parent = root
+    start = time.perf_counter()
+    paths = node_paths(root)
+    assert time.perf_counter() - start < 5.0
+    assert len(paths) == 100_001 and paths[root.children[-1].id] == "root/same[99999]"
+
+
+def test_no_command_writes_over_its_own_input(tmp_path, capsys, shared_recordings):
+    recording = tmp_path / "run.tsv"
+    recording.write_bytes((shared_recordings / "subject1_run1.tsv").read_bytes())
+    before = recording.read_bytes()
+    code, _, err = run_cli(capsys, "segment", str(recording), "--plot", str(recording))
+    assert code == 2 and "--plot" in err and recording.read_bytes() == before
+    assert "must end in .png" in err
+    renamed = tmp_path / "run.png"
+    renamed.write_bytes(before)  # an input that happens to end in .png
+    code, _, err = run_cli(capsys, "segment", str(renamed), "--plot", str(renamed))
+    assert code == 2 and "that is an input of this command" in err and renamed.read_bytes() == before
+    tree = tmp_path / "tree.jsonl"
+    tree.write_text((TREES / "grasp_then_place.yaml").read_text())
+    code, _, err = run_cli(capsys, "run", str(tree), "--log", str(tree))
+    assert code == 2 and "that is an input of this command" in err
+    code, _, err = run_cli(capsys, "tree", "render", str(tree), "--out", str(tmp_path / "x.txt"))
+    assert code == 2 and "must end in .svg or .png or .dot" in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (("demo", "--log", "{tmp}"), "a directory; give a file name"),
+        (("demo", "--log", "{tmp}/file.txt/run.jsonl"), "is a file, not a folder"),
+        (("demo", "--log", "{tmp}/run.txt"), "must end in .jsonl"),
+        (("robots", "render", "aila", "--out", "{tmp}/file.txt/a.png"), "is a file, not a folder"),
+    ],
+)
+def test_outputs_are_checked_before_the_work(tmp_path, capsys, argv, message):
+    (tmp_path / "file.txt").write_text("a file where a folder is expected")
+    start = time.perf_counter()
+    code, out, err = run_cli(capsys, *(arg.format(tmp=tmp_path) for arg in argv))
+    assert code == 2 and message in err and out == ""
+    assert time.perf_counter() - start < 10.0  # refused up front, not after a run
