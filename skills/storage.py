@@ -49,9 +49,8 @@ def check_output(
 ) -> Path:
     """``path`` as a Path once it is known to be writable as an output named ``option`` (e.g. "--plot"):
     with one of ``suffixes`` (if given), not a directory, in a writable folder (or one that can be made),
-    and none of the
-    command's ``inputs`` (an output never replaces what the command reads). Checked before any work, so that
-    a long computation is not lost at the end."""
+    and none of the command's ``inputs`` (an output never replaces what the command reads). Checked before
+    any work, so that a long computation is not lost at the end."""
     path = Path(path)
     if path.is_dir():
         raise InputError(f"{option} {path}: a directory; give a file name")
