@@ -13,7 +13,9 @@ hand or arm swept back into it: contact is real once the ball has left the hand,
 ``robots/pa10/README.md``), never lands within the simulated time, the simulation diverges - gets
 ``FAILURE_REWARD`` (-1000) instead, far below any real throw, and a reference that violates
 its constraints gets ``FAILURE_REWARD * (1 + violation)``, growing with the summed violation (rad, relative
-overspeed, release shortfall), so that an optimiser is led back to feasible throws.
+overspeed, release shortfall) up to ``VIOLATION_CAP``, so that an optimiser is led back to feasible throws.
+A broken candidate (NaN or inf in theta with ``nan="penalize"``, or a theta so large that its reference
+overflows) gets ``BROKEN_REWARD``, the capped penalty: never better than any failing throw.
 
 Variants (``variant=``):
 
@@ -45,6 +47,10 @@ from besman.skills.tasks import TaskBounds
 from besman.skills.validation import finite_array
 
 FAILURE_REWARD = -1000.0
+# Failures grow with their constraint violation up to this cap; a broken candidate (NaN or inf in theta, or a
+# reference that overflows) gets the capped reward, so that it never scores better than a failing one.
+VIOLATION_CAP = 1e6
+BROKEN_REWARD = FAILURE_REWARD * (1.0 + VIOLATION_CAP)
 PAPER_BOUNDS = TaskBounds(("x", "y"), (-7.0, -5.0), (-1.0, 1.0))
 HARDWARE_BOUNDS = TaskBounds(("x", "y"), (-1.5, -0.6), (-0.6, 0.6))
 RELAXED_SPEED_LIMIT = 6.0  # rad/s on every joint in the "paper" variant
@@ -192,6 +198,10 @@ class ThrowingTask:
         """Per candidate: the control array (n_steps, nu + 1) of joint targets and the weld switch, the reason
         it fails before simulation (or None), the release step (-1: never) and how far the reference
         violates its constraints (0 if it does not)."""
+        with np.errstate(over="ignore", invalid="ignore"):  # overflowing references fail below, by name
+            return self._controls(thetas)
+
+    def _controls(self, thetas: np.ndarray):
         references = self.dmp.trajectories(thetas, run_time=self.config.duration, derivatives=0)
         joints = references.positions[:, 1:, : self.arm.size]  # the target for step k is the reference at k+1
         release_signal = references.positions[:, 1:, -1]
@@ -212,10 +222,15 @@ class ThrowingTask:
         )
         overspeed = speeds / self.speed_limits - 1.0
         shortfall = self.config.release_threshold - release_signal.max(axis=1)
+        finite = np.isfinite(references.positions).all(axis=(1, 2))
         for i in range(len(thetas)):
+            if not finite[i]:  # theta so large that the reference overflows
+                failures.append("the reference overflows (theta too large)")
+                violations[i] = VIOLATION_CAP
+                continue
             reason, violations[i] = self._reference_failure(overshoot[i], overspeed[i], shortfall[i])
             failures.append(reason)
-        return controls, failures, release_step, violations
+        return controls, failures, release_step, np.minimum(violations, VIOLATION_CAP)
 
     def _reference_failure(self, overshoot: np.ndarray, overspeed: np.ndarray, shortfall: float):
         """Why the reference fails (or None) and by how much it violates all its constraints together."""
@@ -266,7 +281,7 @@ class ThrowingTask:
     def _with_broken(self, thetas: np.ndarray, taus, broken: np.ndarray, backend: str) -> Evaluation:
         """Evaluates the finite candidates and gives the broken ones the failure penalty, in order."""
         taus = self.bounds.check(taus, n=len(thetas))
-        rewards = np.full(len(thetas), FAILURE_REWARD)
+        rewards = np.full(len(thetas), BROKEN_REWARD)
         details: list[ThrowDetail] = [ThrowDetail(None, None, "theta contains NaN or inf")] * len(thetas)
         good = np.flatnonzero(~broken)
         if good.size:

@@ -4,9 +4,11 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
 import py_trees
 import pytest
 
+from besman.sim.throwing import BROKEN_REWARD, ThrowingTask
 from besman.trees import TreeFileError, load_tree
 from besman.trees.runner import node_paths
 from tests.helpers import run_cli
@@ -96,3 +98,15 @@ def test_outputs_are_checked_before_the_work(tmp_path, capsys, argv, message):
     code, out, err = run_cli(capsys, *(arg.format(tmp=tmp_path) for arg in argv))
     assert code == 2 and message in err and out == ""
     assert time.perf_counter() - start < 10.0  # refused up front, not after a run
+
+
+def test_a_broken_throw_never_scores_better_than_a_failing_one():
+    task = ThrowingTask()
+    theta = task.default_theta()
+    failing = [theta + 50.0, theta * 3.0, np.full_like(theta, 1e200)]  # far beyond the ranges and limits
+    broken = [theta + np.nan, np.full_like(theta, np.inf), np.full_like(theta, 1e306)]  # the last overflows
+    result = task.evaluate(np.array(failing + broken), [-3.5, -3.6], nan="penalize")
+    assert all(detail.failure for detail in result.details)
+    assert result.rewards[3:].max() <= result.rewards[:3].min()
+    assert np.all(np.isfinite(result.rewards)) and result.rewards.min() == BROKEN_REWARD
+    assert result.details[5].failure == "the reference overflows (theta too large)"

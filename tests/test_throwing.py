@@ -3,7 +3,14 @@
 import numpy as np
 import pytest
 
-from besman.sim.throwing import FAILURE_REWARD, HARDWARE_BOUNDS, PAPER_BOUNDS, ThrowingConfig, ThrowingTask
+from besman.sim.throwing import (
+    BROKEN_REWARD,
+    FAILURE_REWARD,
+    HARDWARE_BOUNDS,
+    PAPER_BOUNDS,
+    ThrowingConfig,
+    ThrowingTask,
+)
 
 
 @pytest.fixture(scope="module")
@@ -155,11 +162,11 @@ def test_bad_input_is_a_clear_value_error(task, theta, tau, message):
         task.evaluate(task.default_theta(), [-3.0, -3.0], backend="mpi")
 
 
-def test_a_broken_theta_can_get_the_failure_penalty_instead_of_an_error(task):
+def test_a_broken_theta_can_get_the_worst_penalty_instead_of_an_error(task):
     thetas = np.tile(task.default_theta(), (3, 1))
     thetas[1, 5] = np.nan
     result = task.evaluate(thetas, [-3.5, -3.6], nan="penalize")
-    assert result.rewards[1] == FAILURE_REWARD
+    assert result.rewards[1] == BROKEN_REWARD
     assert result.details[1].failure == "theta contains NaN or inf"
     assert result.rewards[0] == result.rewards[2] > FAILURE_REWARD
     with pytest.raises(ValueError, match="theta contains NaN"):
