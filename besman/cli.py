@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from collections.abc import Sequence
@@ -134,10 +135,14 @@ def _parse_sets(pairs: Sequence[str]) -> dict[str, tuple[float, ...]]:
         name, equals, text = pair.partition("=")
         if not equals or not name:
             raise InputError(f"--set {pair!r}: expected name=value[,value...]")
+        if name in values:
+            raise InputError(f"--set {name}: given twice")
         try:
             values[name] = tuple(float(v) for v in text.split(","))
         except ValueError:
             raise InputError(f"--set {pair!r}: the values must be numbers separated by commas") from None
+        if not all(math.isfinite(v) for v in values[name]):
+            raise InputError(f"--set {pair!r}: the values must be finite numbers")
     return values
 
 

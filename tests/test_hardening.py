@@ -110,3 +110,19 @@ def test_a_broken_throw_never_scores_better_than_a_failing_one():
     assert result.rewards[3:].max() <= result.rewards[:3].min()
     assert np.all(np.isfinite(result.rewards)) and result.rewards.min() == BROKEN_REWARD
     assert result.details[5].failure == "the reference overflows (theta too large)"
+
+
+@pytest.mark.parametrize(
+    ("sets", "message"),
+    [
+        (("objet=0.55,-0.1",), "--set objet: not a value of this run; valid: object, place"),
+        (("place=0.5,-0.4", "place=0.6,-0.4"), "--set place: given twice"),
+        (("object=nan,0.1",), "--set 'object=nan,0.1': the values must be finite numbers"),
+    ],
+)
+def test_set_typos_repeats_and_non_finite_values_are_refused(capsys, sets, message):
+    argv = ["run", str(TREES / "grasp_then_place.yaml")]
+    for pair in sets:
+        argv += ["--set", pair]
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 2 and message in err and out == ""

@@ -40,3 +40,16 @@ def set_task_values(values: Mapping[str, object]) -> None:
         client.set(
             key, np.asarray(value, dtype=float) if not isinstance(value, str) else value, overwrite=True
         )
+
+
+def task_keys_read(root: py_trees.behaviour.Behaviour) -> set[str]:
+    """The names of the ``/task/<name>`` values that the nodes of a tree read (after their remaps)."""
+    prefix = f"{TASK_NAMESPACE}/"
+    keys = set()
+    for node in root.iterate():
+        for client in node.blackboards:
+            for key in client.read:
+                remapped = client.remappings.get(key, key)
+                if remapped.startswith(prefix):
+                    keys.add(remapped[len(prefix) :])
+    return keys

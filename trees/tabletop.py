@@ -19,7 +19,7 @@ from besman.sim.executor import Executor
 from besman.sim.pick_place import PICK_PLACE_BOUNDS
 from besman.sim.world import TABLE, tabletop_world
 from besman.skills.errors import InputError
-from besman.trees.blackboard import set_task_values
+from besman.trees.blackboard import set_task_values, task_keys_read
 from besman.trees.files import describe, load_tree, loads_tree
 from besman.trees.runner import Runner, read_log, statuses
 
@@ -54,9 +54,13 @@ def tabletop_run(
     """A runner for a tree (a file, checked first, or a root behaviour) on AILA's tabletop, ready to run:
     the box stands at ``object`` and ``/task/<name>`` holds every value (``place`` is where the box
     should go)."""
-    settings = pick_place_settings(dict(values or {}), seed)
     from_file = not isinstance(tree, py_trees.behaviour.Behaviour)
     root = load_tree(tree) if from_file else tree  # every file problem is reported before anything runs
+    known = {"object", "place"} | task_keys_read(root)  # the box's position, the target, what the tree reads
+    unknown = sorted(set(values or {}) - known)
+    if unknown:
+        raise InputError(f"--set {unknown[0]}: not a value of this run; valid: {', '.join(sorted(known))}")
+    settings = pick_place_settings(dict(values or {}), seed)
     py_trees.blackboard.Blackboard.clear()
     world = tabletop_world()
     world.place_on("box", TABLE.name, *settings["object"])
