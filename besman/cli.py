@@ -150,8 +150,14 @@ def _print_summary(summary: dict, as_json: bool) -> None:
     if as_json:
         print(json.dumps(summary, indent=2))
         return
+    error = summary["placement_error_m"]
+    outcome = (
+        f"placement error {error * 100:.1f} cm"
+        if error is not None
+        else "box at ({:.3f}, {:.3f}, {:.3f}) m".format(*summary["box_position"])
+    )
     print(
-        f"{summary['status']}: placement error {summary['placement_error_m'] * 100:.1f} cm, "
+        f"{summary['status']}: {outcome}, "
         f"{summary['sim_time_s']:.1f} s simulated in {summary['wall_time_s']:.1f} s, {summary['ticks']} ticks"
     )
     if summary["failed_node"]:
@@ -174,11 +180,18 @@ def _demo(args: argparse.Namespace) -> int:
 
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",))
-    print("AILA grasps the box on the table and places it on the shelf (grasp-then-place tree)")
+    if not args.json:  # --json prints the summary alone
+        print("AILA grasps the box on the table and places it on the shelf (grasp-then-place tree)")
     summary = run_on_tabletop(
         grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, log=args.log
     )
     _print_summary(summary, args.json)
+    if not args.json:
+        print(
+            "next: the same tree as a file, elsewhere on the table, with a log:\n"
+            "  besman run examples/trees/grasp_then_place.yaml --set object=0.5,-0.05 --set place=0.58,-0.44 "
+            "--log run.jsonl"
+        )
     return 0 if summary["status"] == "SUCCESS" else 1
 
 
@@ -465,8 +478,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not hasattr(args, "handler"):
-        parser.print_help()
-        return 0
+        parser.print_help(sys.stderr)
+        return 2
     try:
         return args.handler(args)
     except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError

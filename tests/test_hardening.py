@@ -1,5 +1,7 @@
 """Bad input on purpose: every case gets a clear error naming the file, field or value, before any work."""
 
+import json
+import os
 import textwrap
 import time
 from pathlib import Path
@@ -126,3 +128,39 @@ def test_set_typos_repeats_and_non_finite_values_are_refused(capsys, sets, messa
         argv += ["--set", pair]
     code, out, err = run_cli(capsys, *argv)
     assert code == 2 and message in err and out == ""
+
+
+def test_besman_without_a_command_prints_help_and_fails(capsys):
+    code, out, err = run_cli(capsys)
+    assert code == 2 and out == "" and "usage: besman" in err
+
+
+def test_demo_json_is_json_alone_and_the_prose_suggests_a_next_step(capsys):
+    code, out, _ = run_cli(capsys, "demo", "--json")
+    assert code == 0 and json.loads(out)["status"] == "SUCCESS"
+    code, out, _ = run_cli(capsys, "demo")
+    assert code == 0 and "next:" in out and "besman run examples/trees/grasp_then_place.yaml" in out
+
+
+def test_a_tree_that_places_nothing_reports_where_the_box_is_and_place_alone_fails_clearly(capsys):
+    code, out, _ = run_cli(capsys, "run", str(TREES / "grasp.yaml"), "--seed", "1")
+    assert code == 0 and out.startswith("SUCCESS: box at (") and "placement error" not in out
+    code, out, _ = run_cli(capsys, "run", str(TREES / "place.yaml"), "--seed", "1", "--json")
+    summary = json.loads(out)
+    assert code == 1 and summary["placement_error_m"] is not None
+    assert summary["message"].startswith("not holding box")
+
+
+def test_written_files_honour_the_umask(tmp_path):
+    previous = os.umask(0o027)
+    try:
+        import importlib
+
+        import besman.skills.storage as storage
+
+        importlib.reload(storage)  # the umask is read when the module loads
+        mode = os.stat(storage.write_atomically(tmp_path / "a.json", b"{}")).st_mode & 0o777
+    finally:
+        os.umask(previous)
+        importlib.reload(storage)
+    assert mode == 0o640

@@ -83,15 +83,20 @@ def run_on_tabletop(
     max_sim_time: float = 120.0,
 ) -> dict:
     """Runs a tree on AILA's tabletop (:func:`tabletop_run`) and returns the summary: status, placement error
-    measured in the simulation, simulated and wall time, ticks, failed node and message."""
+    measured in the simulation (None for a tree that does not read the place target), the box's position,
+    simulated and wall time, ticks, failed node and message."""
     runner, settings = tabletop_run(tree, values, seed=seed, max_sim_time=max_sim_time)
     result = runner.run()
     box = runner.executor.world.object_pose("box").position
     if log is not None:
         runner.write_log(log, result)
+    places = "place" in task_keys_read(runner.root)  # a tree that never reads the target places nothing
     return {
         "status": result.status,
-        "placement_error_m": float(np.linalg.norm(box[:2] - np.asarray(settings["place"]))),
+        "placement_error_m": float(np.linalg.norm(box[:2] - np.asarray(settings["place"])))
+        if places
+        else None,
+        "box_position": [round(float(v), 4) for v in box],
         "sim_time_s": result.sim_time_s,
         "wall_time_s": result.wall_time_s,
         "ticks": result.ticks,
