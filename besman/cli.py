@@ -116,15 +116,19 @@ def _tree_render(args: argparse.Namespace) -> int:
     from besman.skills.storage import write_atomically
     from besman.trees import load_tree
 
-    formats = {".svg": "svg", ".png": "png", ".dot": "raw"}
+    formats = {".svg": "svg", ".png": "png", ".dot": None}  # .dot: the DOT source itself, no Graphviz
     out = check_output(args.out, option="--out", suffixes=tuple(formats), inputs=(args.file,))
     graph = py_trees.display.dot_tree(load_tree(args.file))
-    try:
-        data = graph.create(format=formats[out.suffix.lower()])
-    except (FileNotFoundError, OSError) as error:
-        raise RuntimeError(
-            f"rendering needs Graphviz's dot program (apt-get install graphviz): {error}"
-        ) from None
+    kind = formats[out.suffix.lower()]
+    if kind is None:
+        data = graph.to_string().encode("utf-8")
+    else:
+        try:
+            data = graph.create(format=kind)
+        except (FileNotFoundError, OSError, AssertionError) as error:  # pydot asserts on dot's exit code
+            raise RuntimeError(
+                f"rendering needs Graphviz's dot program (apt-get install graphviz): {error}"
+            ) from None
     print(write_atomically(out, data))
     return 0
 
@@ -219,6 +223,8 @@ def _segment(args: argparse.Namespace) -> int:
     from besman.learning import load
     from besman.learning.segmentation import segment
 
+    if args.example_labels and not args.examples:
+        raise InputError("--example-labels chooses among the segments of --examples; give --examples too")
     if args.plot:
         check_output(
             args.plot, option="--plot", suffixes=(".png",), inputs=(args.file, *(args.examples or ()))

@@ -281,6 +281,21 @@ def solve_ik(
         target_position,
         target_orientation,
     )
+    for name, value in (
+        ("position_tolerance", position_tolerance),
+        ("orientation_tolerance", orientation_tolerance),
+    ):
+        if not (isinstance(value, int | float) and 0 < value < math.inf):
+            raise InputError(f"{name} must be a positive number, got {value!r}")
+    for name, value in (("max_iterations", max_iterations), ("restarts", restarts)):
+        if (
+            not isinstance(value, int)
+            or isinstance(value, bool)
+            or value < (1 if name == "max_iterations" else 0)
+        ):
+            raise InputError(
+                f"{name} must be an integer >= {1 if name == 'max_iterations' else 0}, got {value!r}"
+            )
     tolerances = Tolerances(position_tolerance, orientation_tolerance)
 
     start = np.clip(data.qpos[problem.qpos_indices].copy(), problem.lower, problem.upper)

@@ -11,6 +11,7 @@ import py_trees
 import pytest
 
 from besman.sim.throwing import BROKEN_REWARD, ThrowingTask
+from besman.skills.errors import InputError
 from besman.trees import TreeFileError, load_tree
 from besman.trees.runner import node_paths
 from tests.helpers import run_cli
@@ -164,3 +165,32 @@ def test_written_files_honour_the_umask(tmp_path):
         os.umask(previous)
         importlib.reload(storage)
     assert mode == 0o640
+
+
+def test_tree_render_writes_dot_source_without_graphviz(tmp_path, capsys):
+    code, _, _ = run_cli(
+        capsys, "tree", "render", str(TREES / "grasp.yaml"), "--out", str(tmp_path / "t.dot")
+    )
+    assert code == 0 and (tmp_path / "t.dot").read_text().startswith("digraph")
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"max_iterations": 0}, "max_iterations must be an integer >= 1"),
+        ({"restarts": -1}, "restarts must be an integer >= 0"),
+        ({"position_tolerance": float("nan")}, "position_tolerance must be a positive number"),
+        ({"orientation_tolerance": 0.0}, "orientation_tolerance must be a positive number"),
+    ],
+)
+def test_solve_ik_refuses_meaningless_settings(options, message):
+    from besman.robots import load, solve_ik
+
+    with pytest.raises(InputError, match=message):
+        solve_ik(load("pa10"), "arm", [0.3, 0.0, 1.0], **options)
+
+
+def test_example_labels_without_examples_is_an_error(capsys, shared_recordings):
+    recording = shared_recordings / "subject1_run1.tsv"
+    code, _, err = run_cli(capsys, "segment", str(recording), "--example-labels", "reach")
+    assert code == 2 and "give --examples too" in err
