@@ -147,6 +147,10 @@ def _read_text(path: Path) -> list[str]:
         raise DemonstrationError(f"{path}: no such file") from None
 
 
+MAX_MAGNITUDE = 1e9  # no time (s), frame number or coordinate (mm) of a recording is this large
+MAX_TIME_STEP = 1.0  # s between samples: a longer pause is a broken or concatenated recording
+
+
 def _numbers(cells: list[str], path: Path, line: int, names: list[str]) -> np.ndarray:
     values = np.empty(len(cells))
     for i, cell in enumerate(cells):
@@ -160,7 +164,33 @@ def _numbers(cells: list[str], path: Path, line: int, names: list[str]) -> np.nd
             raise DemonstrationError(
                 f"{path}:{line}: column {names[i]!r} holds {text!r}, not a number"
             ) from None
+        if not abs(values[i]) <= MAX_MAGNITUDE:  # inf, or a value no recording holds
+            raise DemonstrationError(
+                f"{path}:{line}: column {names[i]!r} holds {text!r}, not a plausible value"
+            )
     return values
+
+
+def _check_clock(path: Path, times: np.ndarray, frames: np.ndarray, lines: np.ndarray | None = None) -> None:
+    """Times and frame numbers increase, by steps of at most :data:`MAX_TIME_STEP`; ``lines`` gives each
+    row's line in the file (for the message)."""
+
+    def where(row: int) -> str:
+        return f"{path}:{lines[row]}" if lines is not None else f"{path}: sample {row}"
+
+    steps = np.diff(times)
+    if np.any(steps <= 0):
+        row = int(np.argmax(steps <= 0)) + 1
+        raise DemonstrationError(f"{where(row)}: Time must increase ({times[row - 1]:g} then {times[row]:g})")
+    if np.any(steps > MAX_TIME_STEP):
+        row = int(np.argmax(steps > MAX_TIME_STEP)) + 1
+        raise DemonstrationError(
+            f"{where(row)}: Time jumps by {steps[row - 1]:g} s (more than {MAX_TIME_STEP:g} s between "
+            "samples: a gap in the recording; split it there)"
+        )
+    if np.any(np.diff(frames) <= 0):
+        row = int(np.argmax(np.diff(frames) <= 0)) + 1
+        raise DemonstrationError(f"{where(row)}: Frame must increase ({frames[row - 1]} then {frames[row]})")
 
 
 def load_qualisys_tsv(path: str | Path) -> Demonstration:
@@ -177,7 +207,7 @@ def load_qualisys_tsv(path: str | Path) -> Demonstration:
         raise DemonstrationError(
             f"{path}:{header_line + 1}: the columns must start with Frame and Time, got {names[:2]}"
         )
-    rows = []
+    rows, numbers = [], []
     for number, line in enumerate(lines[header_line + 1 :], header_line + 2):
         if not line.strip():
             continue
@@ -189,12 +219,13 @@ def load_qualisys_tsv(path: str | Path) -> Demonstration:
                 f"{path}:{number}: {len(cells)} values for {len(names)} columns (truncated or damaged file)"
             )
         rows.append(_numbers(cells, path, number, names))
+        numbers.append(number)
     if len(rows) < 2:
         raise DemonstrationError(f"{path}: fewer than 2 rows of data")
     data = np.array(rows)
     if np.isnan(data[:, :2]).any():
         row = int(np.argwhere(np.isnan(data[:, :2]))[0, 0])
-        raise DemonstrationError(f"{path}:{header_line + 2 + row}: Frame and Time must be numbers")
+        raise DemonstrationError(f"{path}:{numbers[row]}: Frame and Time must be numbers")
     channels: dict[str, np.ndarray] = {}
     for column, name in enumerate(names[2:], 2):
         marker, _, axis = name.rpartition(" ")
@@ -207,8 +238,7 @@ def load_qualisys_tsv(path: str | Path) -> Demonstration:
         if np.isnan(values).all():
             raise DemonstrationError(f"{path}: marker {marker!r} has no valid sample (all null)")
     times, frames = data[:, 1], data[:, 0].astype(int)
-    if np.any(np.diff(times) <= 0):
-        raise DemonstrationError(f"{path}: the Time column must increase")
+    _check_clock(path, times, frames, np.array(numbers))
     return Demonstration(times, frames, channels, str(path), "m", _ground_truth(path, frames))
 
 
@@ -245,7 +275,7 @@ def load_csv(path: str | Path, *, time_column: str = "time", units: str = "m") -
     names = [name.strip() for name in lines[0].split(",")]
     if time_column not in names:
         raise DemonstrationError(f"{path}:1: no time column {time_column!r}; columns: {', '.join(names)}")
-    rows = []
+    rows, numbers = [], []
     for number, line in enumerate(lines[1:], 2):
         if not line.strip():
             continue
@@ -253,12 +283,16 @@ def load_csv(path: str | Path, *, time_column: str = "time", units: str = "m") -
         if len(cells) != len(names):
             raise DemonstrationError(f"{path}:{number}: {len(cells)} values for {len(names)} columns")
         rows.append(_numbers(cells, path, number, names))
+        numbers.append(number)
     if len(rows) < 2:
         raise DemonstrationError(f"{path}: fewer than 2 rows of data")
     data = np.array(rows)
     times = data[:, names.index(time_column)]
-    if np.isnan(times).any() or np.any(np.diff(times) <= 0):
-        raise DemonstrationError(f"{path}: the {time_column!r} column must hold increasing numbers")
+    if np.isnan(times).any():
+        raise DemonstrationError(
+            f"{path}:{numbers[int(np.argmax(np.isnan(times)))]}: {time_column!r} is empty"
+        )
+    _check_clock(path, times, np.arange(len(times)), np.array(numbers))
     channels: dict[str, np.ndarray] = {}
     scale = 0.001 if units == "mm" else 1.0
     for column, name in enumerate(names):
@@ -293,6 +327,10 @@ def load_npz(path: str | Path) -> Demonstration:
             raise DemonstrationError(
                 f"{path}: channel {name!r} has shape {values.shape}, expected ({len(times)}, 3)"
             )
-    if len(times) < 2 or np.any(np.diff(times) <= 0) or not np.isfinite(times).all():
-        raise DemonstrationError(f"{path}: times must be at least 2 increasing numbers")
+    if len(times) < 2 or len(frames) != len(times) or not np.isfinite(times).all():
+        raise DemonstrationError(f"{path}: times must be at least 2 finite numbers, one per frame")
+    for name, values in channels.items():
+        if np.any(np.abs(values[np.isfinite(values)]) > MAX_MAGNITUDE / 1000) or np.isinf(values).any():
+            raise DemonstrationError(f"{path}: channel {name!r} holds an infinite or implausible value")
+    _check_clock(path, times, frames)
     return Demonstration(times, frames, channels, str(path), "m")

@@ -194,3 +194,51 @@ def test_example_labels_without_examples_is_an_error(capsys, shared_recordings):
     recording = shared_recordings / "subject1_run1.tsv"
     code, _, err = run_cli(capsys, "segment", str(recording), "--example-labels", "reach")
     assert code == 2 and "give --examples too" in err
+
+
+def _damaged_recording(shared_recordings, tmp_path, change) -> Path:
+    """The first 300 samples of a shared recording with ``change(rows)`` applied to the data rows (cells)."""
+    lines = (shared_recordings / "subject1_run1.tsv").read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("Frame\t"))
+    rows = [line.split("\t") for line in lines[header + 1 : header + 301]]
+    change(rows)
+    path = tmp_path / "damaged.tsv"
+    path.write_text("\n".join(lines[: header + 1] + ["\t".join(row) for row in rows]) + "\n")
+    return path
+
+
+def _set(row: int, column: int, text: str):
+    def change(rows):
+        rows[row][column] = text
+
+    return change
+
+
+def _shift_times(row: int, seconds: float):
+    def change(rows):
+        for cells in rows[row:]:
+            cells[1] = f"{float(cells[1]) + seconds:.5f}"
+
+    return change
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (_set(100, 5, "inf"), r":\d+: column '.*' holds 'inf', not a plausible value"),
+        (_set(100, 5, "1e308"), r":\d+: column '.*' holds '1e308', not a plausible value"),
+        (_shift_times(150, 100.0), r":\d+: Time jumps by 100\.\d+ s"),
+        (_shift_times(150, 10_000.0), r":\d+: Time jumps by 1000\d s"),
+        (_set(151, 0, "150"), r":\d+: Frame must increase"),
+    ],
+)
+def test_damaged_recordings_are_refused_naming_file_row_and_column(
+    tmp_path, capsys, shared_recordings, change, message
+):
+    from besman.learning import DemonstrationError, load
+
+    path = _damaged_recording(shared_recordings, tmp_path, change)
+    with pytest.raises(DemonstrationError, match=r"damaged\.tsv" + message):
+        load(path)
+    code, _, err = run_cli(capsys, "segment", str(path))
+    assert code == 2 and "damaged.tsv" in err
