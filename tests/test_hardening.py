@@ -242,3 +242,43 @@ def test_damaged_recordings_are_refused_naming_file_row_and_column(
         load(path)
     code, _, err = run_cli(capsys, "segment", str(path))
     assert code == 2 and "damaged.tsv" in err
+
+
+@pytest.mark.parametrize(
+    ("node", "message"),
+    [
+        (
+            "Repeat: {name: r, times: 0, child: {Wait: {name: w, duration: 0}}}",
+            "root.Repeat.times: must be at least 1",
+        ),
+        (
+            "Retry: {name: r, attempts: -2, child: {Wait: {name: w, duration: 0}}}",
+            "root.Retry.attempts: must be at least 1",
+        ),
+        (
+            "ObjectAt: {name: o, object: box, position: [0.5]}",
+            "root.ObjectAt.position: needs 2 or 3 numbers, got 1",
+        ),
+        (
+            "ObjectAt: {name: o, object: box, tolerance: -0.1}",
+            "root.ObjectAt.tolerance: must be greater than 0",
+        ),
+        (
+            "Timeout: {name: t, duration: 0, child: {Wait: {name: w, duration: 0}}}",
+            "root.Timeout.duration: must be greater than 0",
+        ),
+        ("Wait: {name: w, duration: nan}", "root.Wait.duration: expected a finite number"),
+        (
+            "Parallel: {name: p, policy: sometimes, children: [{Wait: {name: w, duration: 0}}]}",
+            "root.Parallel.policy: must be one of all, one, got 'sometimes'",
+        ),
+        ("Gripper: {name: g, action: open, timeout: -1}", "root.Gripper.timeout: must be greater than 0"),
+    ],
+)
+def test_tree_values_are_checked_at_load_with_file_and_line(tmp_path, node, message):
+    path = tmp_path / "values.yaml"
+    path.write_text(f"besman_tree: 1\nroot:\n  {node}\n")
+    with pytest.raises(
+        TreeFileError, match=r"values\.yaml:3: " + message.replace(".", r"\.").replace("[", r"\[")
+    ):
+        load_tree(path)

@@ -17,11 +17,11 @@ def write(folder: Path, name: str, text: str) -> Path:
     return path
 
 
-def test_the_example_loads_with_its_includes_and_remapping():
+def test_the_example_loads_with_its_includes():
     root = load_tree(EXAMPLES / "grasp_then_place.yaml")
     described = describe(root)
     place = described["Retry"]["child"]["Sequence"]["children"][1]["Place"]
-    assert place["remap"] == {"target": "/task/place"}, "the include's remap reached the subtree"
+    assert place["target"] == "/task/place", "the included subtree reads the run's place target"
     grasp = described["Retry"]["child"]["Sequence"]["children"][0]["Selector"]["children"][1]
     assert grasp["Grasp"]["attempts"] == 2
 
@@ -123,7 +123,7 @@ def test_primitives_are_referenced_by_file_and_round_trip(tmp_path):
          root:
            Gripper: {name: g, action: squeeze}
          """,
-            r"bad.yaml:3: root.Gripper: g: action must be 'open' or 'close'",
+            r"bad.yaml:3: root.Gripper.action: must be one of open, close, got 'squeeze'",
         ),
         (
             """
@@ -236,3 +236,30 @@ def test_templates_and_pools_are_referenced_by_module_attribute(tmp_path, monkey
     )
     with pytest.raises(TreeFileError, match="is not a pool"):
         load_tree(bad)
+
+
+def test_an_include_remaps_the_keys_of_the_included_subtree(tmp_path):
+    write(
+        tmp_path,
+        "sub.yaml",
+        """
+        besman_tree: 1
+        root:
+          Place: {name: place the box, object: box, namespace: place}
+    """,
+    )
+    main_file = write(
+        tmp_path,
+        "main.yaml",
+        """
+        besman_tree: 1
+        root:
+          Sequence:
+            name: main
+            children:
+              - include: sub.yaml
+                remap: {/place/target: /task/place}
+    """,
+    )
+    place = describe(load_tree(main_file))["Sequence"]["children"][0]["Place"]
+    assert place["remap"] == {"target": "/task/place"}, "the include's remap reached the subtree"

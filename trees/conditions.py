@@ -43,7 +43,7 @@ class ObjectAt(SimulationBehaviour):
     """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``?"""
 
     roles: ClassVar = {"target": Access.READ}
-    parameters: ClassVar = {"object": "str", "position": "floats", "tolerance": "float"}
+    parameters: ClassVar = {"object": "str", "position": "floats[2|3]", "tolerance": "float>0"}
 
     def __init__(
         self,
@@ -77,7 +77,7 @@ class AtPose(SimulationBehaviour):
     """Are the executor's joints within ``tolerance`` (rad or m) of ``configuration`` (or its role)?"""
 
     roles: ClassVar = {"configuration": Access.READ}
-    parameters: ClassVar = {"configuration": "floats", "tolerance": "float"}
+    parameters: ClassVar = {"configuration": "floats", "tolerance": "float>0"}
 
     def __init__(
         self,

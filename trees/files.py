@@ -32,6 +32,7 @@ files, cycles of includes - and reports the file, line and path of the first pro
 from __future__ import annotations
 
 import importlib
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -256,6 +257,13 @@ class _Builder:
         return behaviour
 
     def value(self, node, param: Param, path: Path, where: str):
+        value = self._value(node, param, path, where)
+        problem = param.violation(value)
+        if problem is not None:
+            raise self._error(node, path, where, problem)
+        return value
+
+    def _value(self, node, param: Param, path: Path, where: str):
         kind = param.kind
         if kind == "keys":
             mapping = self._mapping(node, path, where)
@@ -307,11 +315,14 @@ class _Builder:
     def _number(self, node, path: Path, where: str, kind: type):
         text = self._scalar(node, path, where)
         try:
-            return kind(text) if kind is int else float(text)
+            number = kind(text) if kind is int else float(text)
         except ValueError:
             raise self._error(
                 node, path, where, f"expected {'an integer' if kind is int else 'a number'}, got {text!r}"
             ) from None
+        if not math.isfinite(number):
+            raise self._error(node, path, where, f"expected a finite number, got {text!r}")
+        return number
 
 
 def describe(node: py_trees.behaviour.Behaviour) -> dict:

@@ -85,7 +85,7 @@ class ExecutePrimitive(MotionLeaf):
     """
 
     roles: ClassVar = {"primitive": Access.READ}
-    parameters: ClassVar = {"primitive": "primitive", "timeout": "float"}
+    parameters: ClassVar = {"primitive": "primitive", "timeout": "float>0"}
 
     def __init__(
         self,
@@ -118,11 +118,11 @@ class Gripper(MotionLeaf):
     """
 
     parameters: ClassVar = {
-        "action": "str",
-        "opening": "float",
+        "action": "str{open|close}",
+        "opening": "float>=0",
         "expect_grasp": "bool",
         "object": "str",
-        "timeout": "float",
+        "timeout": "float>0",
     }
 
     def __init__(

@@ -5,12 +5,15 @@ blackboard roles once; its defaults are its constructor's. Roles add ``namespace
 idioms are functions, so their parameter kinds are declared here; py_trees' composites and decorators get a
 line each. Parameter kinds: ``str``, ``float``, ``int``, ``bool``, ``floats`` (a list of numbers), ``keys``
 (a mapping of roles or keys to keys), ``primitive`` (a primitive's JSON file), ``template`` and ``pool``
-(``module:attribute``).
+(``module:attribute``, or a pool directory). A kind may carry a rule that the loader checks with the file
+and line: ``>0`` or ``>=1`` (bounds of a number), ``[2|3]`` (allowed lengths of a list), ``{all|one}``
+(allowed values of a string); numbers are always finite.
 """
 
 from __future__ import annotations
 
 import inspect
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -29,11 +32,37 @@ WIRING = {"namespace": "str", "remap": "keys"}
 
 @dataclass(frozen=True)
 class Param:
-    """A node parameter: its kind, whether it is required, and its default (from the constructor)."""
+    """A node parameter: its kind, whether it is required, its default (from the constructor), and the rule
+    its value must meet ("" for none; see the module documentation)."""
 
     kind: str
     required: bool = False
     default: Any = None
+    rule: str = ""
+
+    @classmethod
+    def of(cls, declared: str, required: bool = False, default: Any = None) -> Param:
+        """A parameter from a declared kind with its rule, e.g. ``"int>=1"`` or ``"floats[2|3]"``."""
+        kind, rule = re.fullmatch(r"([a-z]+)(.*)", declared).groups()
+        return cls(kind, required, default, rule)
+
+    def violation(self, value: Any) -> str | None:
+        """Why ``value`` breaks the rule, or None."""
+        rule = self.rule
+        if not rule:
+            return None
+        if rule.startswith(">="):
+            return None if value >= float(rule[2:]) else f"must be at least {rule[2:]}, got {value!r}"
+        if rule.startswith(">"):
+            return None if value > float(rule[1:]) else f"must be greater than {rule[1:]}, got {value!r}"
+        allowed = rule[1:-1].split("|")
+        if rule.startswith("["):
+            return (
+                None
+                if str(len(value)) in allowed
+                else f"needs {' or '.join(allowed)} numbers, got {len(value)}"
+            )
+        return None if value in allowed else f"must be one of {', '.join(allowed)}, got {value!r}"
 
 
 @dataclass(frozen=True)
@@ -60,7 +89,7 @@ def _params(build: Callable, kinds: Mapping[str, str]) -> dict[str, Param]:
     for name, kind in kinds.items():
         default = signature.parameters[name].default
         required = default is inspect.Parameter.empty
-        params[name] = Param(kind, required, None if required else default)
+        params[name] = Param.of(kind, required, None if required else default)
     return params
 
 
@@ -99,17 +128,17 @@ NODE_TYPES: dict[str, NodeType] = {
     ),
     "Parallel": NodeType(
         lambda name, policy, children: py_trees.composites.Parallel(name, _POLICIES[policy](), children),
-        {"policy": Param("str", default="all")},
+        {"policy": Param.of("str{all|one}", default="all")},
         "many",
     ),
     "Retry": NodeType(
         lambda name, attempts, child: py_trees.decorators.Retry(name, child, attempts),
-        {"attempts": Param("int", required=True)},
+        {"attempts": Param.of("int>=1", required=True)},
         "one",
     ),
     "Repeat": NodeType(
         lambda name, times, child: py_trees.decorators.Repeat(name, child, times),
-        {"times": Param("int", required=True)},
+        {"times": Param.of("int>=1", required=True)},
         "one",
     ),
     "Inverter": _decorator(py_trees.decorators.Inverter),
@@ -118,7 +147,7 @@ NODE_TYPES: dict[str, NodeType] = {
     "SuccessIsRunning": _decorator(py_trees.decorators.SuccessIsRunning),
     "Timeout": NodeType(
         lambda name, duration, child: SimTimeout(name, child, duration=duration),
-        {"duration": Param("float", required=True)},
+        {"duration": Param.of("float>0", required=True)},
         "one",
     ),
     **{
@@ -137,10 +166,12 @@ NODE_TYPES: dict[str, NodeType] = {
         )
     },
     "Grasp": subtree(
-        grasp, {"object": "str", "namespace": "str", "attempts": "int", "remap": "keys"}, PlanGrasp
+        grasp, {"object": "str", "namespace": "str", "attempts": "int>=1", "remap": "keys"}, PlanGrasp
     ),
     "Place": subtree(
         place, {"object": "str", "namespace": "str", "target": "str", "remap": "keys"}, PlanPlace
     ),
-    "GraspThenPlace": subtree(grasp_then_place, {"object": "str", "target": "str", "attempts": "int"}, None),
+    "GraspThenPlace": subtree(
+        grasp_then_place, {"object": "str", "target": "str", "attempts": "int>=1"}, None
+    ),
 }

@@ -44,7 +44,7 @@ class Deadline:
 class Wait(SimulationBehaviour):
     """Succeeds ``duration`` simulated seconds after it starts."""
 
-    parameters: ClassVar = {"duration": "float"}
+    parameters: ClassVar = {"duration": "float>=0"}
 
     def __init__(self, name: str, *, duration: float) -> None:
         super().__init__(name)
