@@ -230,7 +230,20 @@ def _segment(args: argparse.Namespace) -> int:
             args.plot, option="--plot", suffixes=(".png",), inputs=(args.file, *(args.examples or ()))
         )
     demo = load(args.file)
-    segmentation = segment(demo, marker=args.marker)
+    from tqdm import tqdm
+
+    from besman.learning.segmentation import EXACT_UP_TO
+
+    samples = int(demo.duration * 20.0)  # at segment()'s signal rate; pruned inference reports progress
+    with tqdm(
+        total=samples, desc="segmenting", unit="sample", leave=False, disable=samples <= EXACT_UP_TO
+    ) as bar:
+        segmentation = segment(
+            demo,
+            marker=args.marker,
+            max_particles=None if args.exact else (args.max_particles or "auto"),
+            progress=bar.update,
+        )
     labels = _few_shot_labels(args, demo, segmentation) if args.examples else [None] * len(segmentation)
     frames = [int(frame) for frame in segmentation.frames]
     times = [float(time) for time in segmentation.times]
@@ -435,6 +448,18 @@ def build_parser() -> argparse.ArgumentParser:
     segment.add_argument("file", help="a recording (.tsv Qualisys export, .csv, .npz)")
     segment.add_argument("--marker", default="Hand top", help="the marker to segment (default: Hand top)")
     segment.add_argument("--json", action="store_true", help="print the segments as JSON")
+    inference = segment.add_mutually_exclusive_group()
+    inference.add_argument(
+        "--exact",
+        action="store_true",
+        help="exact inference at any length (O(T^2) memory; default up to 60 s)",
+    )
+    inference.add_argument(
+        "--max-particles",
+        type=int,
+        metavar="N",
+        help="pruned inference with N candidate change points (default beyond 60 s: 50)",
+    )
     segment.add_argument("--plot", metavar="PNG", help="write the speed with the boundaries to this file")
     segment.add_argument(
         "--examples",

@@ -282,3 +282,33 @@ def test_tree_values_are_checked_at_load_with_file_and_line(tmp_path, node, mess
         TreeFileError, match=r"values\.yaml:3: " + message.replace(".", r"\.").replace("[", r"\[")
     ):
         load_tree(path)
+
+
+@pytest.mark.slow
+def test_a_long_recording_is_segmented_by_pruned_inference_automatically(tmp_path, capsys, shared_recordings):
+    """Six runs one after the other (about 90 s): past a minute, segment() prunes to 50 candidates (linear
+    time and memory) unless asked for exact inference."""
+    from besman.learning import load
+    from besman.learning.segmentation import EXACT_UP_TO, segment
+
+    lines, frame, time_offset = None, 0, 0.0
+    for k in range(1, 7):
+        source = (shared_recordings / f"subject1_run{k}.tsv").read_text().splitlines()
+        header = next(i for i, line in enumerate(source) if line.startswith("Frame\t"))
+        lines = lines or source[: header + 1]
+        first = source[header + 1].split("\t")
+        start_frame, start_time = int(first[0]), float(first[1])
+        for line in source[header + 1 :]:
+            cells = line.split("\t")
+            cells[0] = str(frame + 1 + int(cells[0]) - start_frame)
+            cells[1] = f"{time_offset + float(cells[1]) - start_time:.5f}"
+            lines.append("\t".join(cells))
+        frame, time_offset = int(lines[-1].split("\t")[0]), float(lines[-1].split("\t")[1]) + 0.01
+    path = tmp_path / "long.tsv"
+    path.write_text("\n".join(lines) + "\n")
+    demo = load(path)
+    assert demo.duration * 20 > EXACT_UP_TO
+    automatic = segment(demo)
+    np.testing.assert_array_equal(automatic.boundaries, segment(demo, max_particles=50).boundaries)
+    code, out, _ = run_cli(capsys, "segment", str(path), "--json")
+    assert code == 0 and json.loads(out)["boundaries_frame"] == [int(f) for f in automatic.frames]
