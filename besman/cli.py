@@ -513,6 +513,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         return args.handler(args)
+    except KeyboardInterrupt:
+        print("besman: interrupted (a --log holds the run up to here)", file=sys.stderr)
+        return 130
     except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)

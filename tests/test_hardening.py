@@ -312,3 +312,41 @@ def test_a_long_recording_is_segmented_by_pruned_inference_automatically(tmp_pat
     np.testing.assert_array_equal(automatic.boundaries, segment(demo, max_particles=50).boundaries)
     code, out, _ = run_cli(capsys, "segment", str(path), "--json")
     assert code == 0 and json.loads(out)["boundaries_frame"] == [int(f) for f in automatic.frames]
+
+
+def test_an_interrupted_run_leaves_a_whole_log_and_one_line(tmp_path, capsys, monkeypatch):
+    """Ctrl-C in the middle of a run: the log holds the ticks so far and an INTERRUPTED result, and the
+    command says so in one line (exit 130)."""
+    from besman.sim.executor import Executor
+    from besman.trees.runner import read_log
+
+    calls = {"count": 0}
+    advance = Executor.advance
+
+    def interrupted_advance(self, cycles):
+        calls["count"] += 1
+        if calls["count"] == 40:
+            raise KeyboardInterrupt
+        return advance(self, cycles)
+
+    monkeypatch.setattr(Executor, "advance", interrupted_advance)
+    log = tmp_path / "run.jsonl"
+    code, _, err = run_cli(
+        capsys, "run", str(TREES / "grasp_then_place.yaml"), "--seed", "1", "--log", str(log)
+    )
+    assert code == 130 and err.strip().splitlines() == [
+        "besman: interrupted (a --log holds the run up to here)"
+    ]
+    header, records, result = read_log(log)
+    assert header["kind"] == "besman-run-log" and len(records) == 40 and result["status"] == "INTERRUPTED"
+    assert [path.name for path in tmp_path.iterdir() if path.name.endswith(".tmp")] == []
+
+
+def test_two_runs_cannot_write_the_same_log(tmp_path):
+    from besman.trees.runner import LogStream
+
+    first = LogStream(tmp_path / "run.jsonl", {})
+    with pytest.raises(InputError, match="another run is writing this log"):
+        LogStream(tmp_path / "run.jsonl", {})
+    first.abandon()
+    LogStream(tmp_path / "run.jsonl", {}).abandon()  # free again

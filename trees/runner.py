@@ -8,7 +8,10 @@ the blackboard writes of that tick, and a summary of the robot and objects. The 
 - a header ``{"schema_version": 1, "kind": "besman-run-log", "run": {...}}`` (what was run, with which
   settings: enough to run it again),
 - one line per tick ``{"tick", "time", "statuses", "feedback", "blackboard", "robot"}``,
-- a result line ``{"result": {...}}``.
+- a result line ``{"result": {...}}`` (status SUCCESS, FAILURE, or INTERRUPTED for a run stopped by Ctrl-C).
+
+With a log file, the runner writes it as the run goes (:class:`LogStream`), and the file appears, whole,
+when the run ends or is interrupted.
 
 :func:`read_log` reads it back and :func:`statuses` gives the per-tick statuses of a run or a log. The
 runner knows nothing of any particular task: :mod:`besman.trees.tabletop` sets up AILA's tabletop runs.
@@ -16,8 +19,11 @@ runner knows nothing of any particular task: :mod:`besman.trees.tabletop` sets u
 
 from __future__ import annotations
 
+import fcntl
 import json
 import math
+import os
+import tempfile
 import time
 from collections import Counter
 from collections.abc import Iterator
@@ -32,7 +38,7 @@ from py_trees.common import Status
 from besman.sim.executor import Executor
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
-from besman.skills.storage import check_schema_version, write_atomically
+from besman.skills.storage import check_schema_version
 
 SCHEMA_VERSION = 1
 _STATUS_NAMES = {status: status.value for status in Status}  # an Enum's .value is a slow descriptor
@@ -116,11 +122,42 @@ class Runner:
             name: int(model.jnt_qposadr[model.joint(name).id]) for name in executor.world.objects
         }
 
-    def run(self) -> RunResult:
-        """Runs to the end and returns the result (the records are in ``self.records``)."""
+    def run(self, log: str | Path | None = None) -> RunResult:
+        """Runs to the end and returns the result (the records are in ``self.records``). With ``log``, the
+        JSON-lines log is written as the run goes (:class:`LogStream`): an interrupted run (Ctrl-C) leaves a
+        well-formed log up to the interruption, ending with an ``INTERRUPTED`` result, before the
+        ``KeyboardInterrupt`` goes on."""
+        stream = None if log is None else LogStream(log, self.run_info)
         py_trees.blackboard.Blackboard.enable_activity_stream(maximum_size=10000)
-        py_trees.trees.setup(self.root, executor=self.executor)
         start_sim, start_wall = self.executor.time, time.perf_counter()
+        try:
+            py_trees.trees.setup(self.root, executor=self.executor)
+            status = self._loop(start_sim, stream)
+        except KeyboardInterrupt:
+            if stream is not None:
+                elapsed = (self.executor.time - start_sim, time.perf_counter() - start_wall)
+                stream.close(RunResult("INTERRUPTED", *elapsed, len(self.records), None, "interrupted"))
+            raise
+        except BaseException:
+            if stream is not None:
+                stream.abandon()
+            raise
+        finally:
+            py_trees.blackboard.Blackboard.disable_activity_stream()
+        failed, message = self._outcome(status)
+        result = RunResult(
+            status.value if status in (Status.SUCCESS, Status.FAILURE) else "FAILURE",
+            self.executor.time - start_sim,
+            time.perf_counter() - start_wall,
+            len(self.records),
+            failed,
+            message,
+        )
+        if stream is not None:
+            stream.close(result)
+        return result
+
+    def _loop(self, start_sim: float, stream: LogStream | None) -> Status:
         status = Status.RUNNING
         while status is Status.RUNNING:
             begin = time.perf_counter()
@@ -130,6 +167,8 @@ class Runner:
             middle = time.perf_counter()
             status = self.root.status
             self.records.append(self._record())
+            if stream is not None:
+                stream.write(self.records[-1])
             self.tick_seconds.append(middle - begin)
             self.record_seconds.append(time.perf_counter() - middle)
             if status is not Status.RUNNING:
@@ -138,16 +177,7 @@ class Runner:
                 self.root.stop(Status.INVALID)
                 break
             self.executor.advance(self.cycles_per_tick)
-        py_trees.blackboard.Blackboard.disable_activity_stream()
-        failed, message = self._outcome(status)
-        return RunResult(
-            status.value if status in (Status.SUCCESS, Status.FAILURE) else "FAILURE",
-            self.executor.time - start_sim,
-            time.perf_counter() - start_wall,
-            len(self.records),
-            failed,
-            message,
-        )
+        return status
 
     def _outcome(self, status: Status) -> tuple[str | None, str]:
         if status is Status.SUCCESS:
@@ -197,14 +227,55 @@ class Runner:
             "robot": robot,
         }
 
-    def write_log(self, path: str | Path, result: RunResult) -> Path:
-        """Writes the JSON-lines log (atomically)."""
-        lines = [
-            json.dumps({"schema_version": SCHEMA_VERSION, "kind": "besman-run-log", "run": self.run_info})
-        ]
-        lines += [json.dumps(record) for record in self.records]
-        lines.append(json.dumps({"result": asdict(result)}))
-        return write_atomically(path, ("\n".join(lines) + "\n").encode("utf-8"))
+
+class LogStream:
+    """A run's JSON-lines log, written as the run goes: the header now, one line per tick, the result at the
+    end. Lines go to a temporary file beside ``path`` that becomes ``path`` when the result is written, so
+    ``path`` is only ever a whole log; another run writing the same ``path`` at the same time is refused
+    (a lock on ``.NAME.lock`` beside it)."""
+
+    def __init__(self, path: str | Path, run_info: dict) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._lock = open(self.path.with_name(f".{self.path.name}.lock"), "a+b")  # noqa: SIM115 (held all run)
+        try:
+            fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self._lock.close()
+            raise InputError(f"--log {self.path}: another run is writing this log") from None
+        descriptor, temporary = tempfile.mkstemp(
+            dir=self.path.parent, prefix=f".{self.path.name}.", suffix=".tmp"
+        )
+        self._temporary = Path(temporary)
+        self._file = os.fdopen(descriptor, "w", encoding="utf-8")
+        self._line({"schema_version": SCHEMA_VERSION, "kind": "besman-run-log", "run": run_info})
+
+    def _line(self, document: dict) -> None:
+        self._file.write(json.dumps(document) + "\n")
+
+    def write(self, record: dict) -> None:
+        self._line(record)
+
+    def close(self, result: RunResult) -> Path:
+        """Writes the result line and puts the log in place."""
+        self._line({"result": asdict(result)})
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self._file.close()
+        os.chmod(self._temporary, 0o644)
+        os.replace(self._temporary, self.path)
+        self._release()
+        return self.path
+
+    def abandon(self) -> None:
+        """Drops the log of a run that broke (the error says why); an older log at ``path`` stays."""
+        self._file.close()
+        self._temporary.unlink(missing_ok=True)
+        self._release()
+
+    def _release(self) -> None:
+        fcntl.flock(self._lock, fcntl.LOCK_UN)
+        self._lock.close()
 
 
 def read_log(path: str | Path) -> tuple[dict, list[dict], dict]:

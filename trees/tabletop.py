@@ -86,10 +86,8 @@ def run_on_tabletop(
     measured in the simulation (None for a tree that does not read the place target), the box's position,
     simulated and wall time, ticks, failed node and message."""
     runner, settings = tabletop_run(tree, values, seed=seed, max_sim_time=max_sim_time)
-    result = runner.run()
+    result = runner.run(log=log)
     box = runner.executor.world.object_pose("box").position
-    if log is not None:
-        runner.write_log(log, result)
     places = "place" in task_keys_read(runner.root)  # a tree that never reads the target places nothing
     return {
         "status": result.status,
