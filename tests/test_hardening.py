@@ -339,7 +339,7 @@ def test_an_interrupted_run_leaves_a_whole_log_and_one_line(tmp_path, capsys, mo
     ]
     header, records, result = read_log(log)
     assert header["kind"] == "besman-run-log" and len(records) == 40 and result["status"] == "INTERRUPTED"
-    assert [path.name for path in tmp_path.iterdir() if path.name.endswith(".tmp")] == []
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["run.jsonl"]  # no temporary or lock file
 
 
 def test_two_runs_cannot_write_the_same_log(tmp_path):

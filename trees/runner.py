@@ -274,6 +274,7 @@ class LogStream:
         self._release()
 
     def _release(self) -> None:
+        Path(self._lock.name).unlink(missing_ok=True)  # no lock file left beside the log
         fcntl.flock(self._lock, fcntl.LOCK_UN)
         self._lock.close()
 
