@@ -350,3 +350,22 @@ def test_two_runs_cannot_write_the_same_log(tmp_path):
         LogStream(tmp_path / "run.jsonl", {})
     first.abandon()
     LogStream(tmp_path / "run.jsonl", {}).abandon()  # free again
+
+
+def test_the_readme_recording_examples_run_from_the_shipped_recordings(tmp_path, capsys):
+    data = Path(__file__).resolve().parents[1] / "examples" / "data"
+    assert (data / "LICENSE").read_text().startswith("Copyright 2018-2022 Lisa Gutzeit")
+    assert run_cli(capsys, "demos", "show", str(data / "subject1_run1.tsv"))[0] == 0
+    code, out, _ = run_cli(
+        capsys,
+        "segment",
+        str(data / "subject1_run1.tsv"),
+        "--json",
+        "--plot",
+        str(tmp_path / "segments.png"),
+        "--examples",
+        str(data / "subject2_run1.tsv"),
+    )
+    assert code == 0 and (tmp_path / "segments.png").stat().st_size > 1000
+    labels = {segment["label"] for segment in json.loads(out)["segments"]}
+    assert len(labels - {None}) >= 4  # the movements get the example's building-block labels
