@@ -142,9 +142,15 @@ def load(path: str | Path, **options) -> Demonstration:
 
 def _read_text(path: Path) -> list[str]:
     try:
-        return path.read_text(encoding="utf-8", errors="replace").splitlines()
+        data = path.read_bytes()
     except FileNotFoundError:
         raise DemonstrationError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise DemonstrationError(f"{path}: a directory, not a recording") from None
+    if b"\x00" in data[:4096]:
+        raise DemonstrationError(f"{path}: a binary file, not a text recording")
+    # Exports may carry a stray non-UTF-8 byte in a description; the numbers are ASCII either way.
+    return data.decode("utf-8", errors="replace").splitlines()
 
 
 MAX_MAGNITUDE = 1e9  # no time (s), frame number or coordinate (mm) of a recording is this large
@@ -273,8 +279,11 @@ def load_csv(path: str | Path, *, time_column: str = "time", units: str = "m") -
     if not lines:
         raise DemonstrationError(f"{path}: empty file")
     names = [name.strip() for name in lines[0].split(",")]
+    if not all(name.isprintable() for name in names):
+        raise DemonstrationError(f"{path}:1: not a CSV header line (unprintable characters)")
     if time_column not in names:
-        raise DemonstrationError(f"{path}:1: no time column {time_column!r}; columns: {', '.join(names)}")
+        shown = ", ".join(names[:20]) + (", ..." if len(names) > 20 else "")
+        raise DemonstrationError(f"{path}:1: no time column {time_column!r}; columns: {shown}")
     rows, numbers = [], []
     for number, line in enumerate(lines[1:], 2):
         if not line.strip():

@@ -223,6 +223,7 @@ class _EvidenceKernel:
 EXACT_UP_TO = 1200  # samples (a minute at 20 Hz): exact inference's O(T^2) memory stays around 100 MB
 AUTO_PARTICLES = 50  # beyond that: as close to exact as the benchmark shows (F1 unchanged), linear in T
 PROGRESS_STEP = 100  # samples between progress reports
+STILL_SPEED = 1e-3  # m/s: a marker never faster than this has not moved
 
 
 def _as_columns(y: np.ndarray) -> np.ndarray:
@@ -546,6 +547,11 @@ def segment(
     signal_times, values = resample(
         demo.times, smoothed.velocities if signal == "velocity" else smoothed.speed, rate
     )
+    if not np.max(smoothed.speed) >= STILL_SPEED:  # constant positions make every segment model singular
+        raise DemonstrationError(
+            f"{demo.source or 'demonstration'}: marker {marker!r} does not move "
+            f"(below {1000 * STILL_SPEED:g} mm/s throughout); there is nothing to segment"
+        )
     minimum = samples(prior.min_length, rate)
     if len(values) < 2 * minimum:
         raise DemonstrationError(

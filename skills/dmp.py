@@ -40,6 +40,7 @@ from besman.skills.transformation import TransformationSystem, moving_goal_basis
 from besman.skills.validation import broadcast_vector, finite_array, increasing_times, positive
 
 DEFAULT_SETTINGS = DMPSettings()
+MAX_STEPS = 20_000  # time steps of one generated trajectory (20 s at 1 ms)
 
 
 @dataclass(frozen=True)
@@ -237,7 +238,13 @@ class DMP:
         return linear_map(self.settings, self._execution_time, self._dt, run_time)
 
     def _run_time(self, run_time: float | None) -> float:
-        return self._execution_time if run_time is None else positive("run_time", run_time)
+        run_time = self._execution_time if run_time is None else positive("run_time", run_time)
+        if run_time / self.dt > MAX_STEPS:  # the response tables grow with the steps: refuse, do not swap
+            raise InputError(
+                f"run_time {run_time:g} s at dt {self.dt:g} s is {run_time / self.dt:.3g} steps; at most "
+                f"{MAX_STEPS} (a longer dt or a shorter run)"
+            )
+        return run_time
 
     def trajectory(self, theta=None, *, run_time: float | None = None) -> Trajectory:
         """Times (T,) and positions, velocities, accelerations (T, n_dims) for theta (default: the DMP's own

@@ -143,5 +143,12 @@ def read_npz(path: Path, expected_sha256: str | None = None) -> dict[str, np.nda
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as archive:
             return {name: archive[name] for name in archive.files}
+    except ValueError as error:
+        if "pickle" in str(error):  # numpy would suggest allow_pickle: besman never unpickles
+            raise InputError(
+                f"{path}: not an NPZ archive of arrays (loading it would unpickle Python objects, which "
+                "besman never does)"
+            ) from None
+        raise InputError(f"{path}: not a readable NPZ archive ({error})") from None
     except Exception as error:  # zipfile, zlib and numpy raise many kinds for damaged archives
         raise InputError(f"{path}: not a readable NPZ archive ({type(error).__name__}: {error})") from None

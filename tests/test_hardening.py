@@ -369,3 +369,30 @@ def test_the_readme_recording_examples_run_from_the_shipped_recordings(tmp_path,
     assert code == 0 and (tmp_path / "segments.png").stat().st_size > 1000
     labels = {segment["label"] for segment in json.loads(out)["segments"]}
     assert len(labels - {None}) >= 4  # the movements get the example's building-block labels
+
+
+def test_unreadable_files_and_impossible_requests_get_one_clear_line(tmp_path, capsys):
+    data = Path(__file__).resolve().parents[1] / "examples" / "data"
+    noise = np.random.default_rng(0).bytes(3000)
+    (tmp_path / "noise.npz").write_bytes(noise)
+    (tmp_path / "noise.csv").write_bytes(noise)
+    code, _, err = run_cli(capsys, "demos", "show", str(tmp_path / "noise.npz"))
+    assert code == 2 and "never does" in err and "allow_pickle" not in err
+    code, _, err = run_cli(capsys, "demos", "show", str(tmp_path / "noise.csv"))
+    assert code == 2 and err.isascii() and "a binary file" in err
+    lines = (data / "subject1_run1.tsv").read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("Frame\t"))
+    hand = [i for i, name in enumerate(lines[header].split("\t")) if name.startswith("Hand top ")]
+    still = lines[: header + 1]
+    for line in lines[header + 1 :]:
+        cells = line.split("\t")
+        for i in hand:
+            cells[i] = "100.0"
+        still.append("\t".join(cells))
+    (tmp_path / "still.tsv").write_text("\n".join(still) + "\n")
+    code, _, err = run_cli(capsys, "segment", str(tmp_path / "still.tsv"))
+    assert code == 2 and "marker 'Hand top' does not move" in err
+    from besman.skills import DMP
+
+    with pytest.raises(InputError, match=r"run_time 10000 s at dt 0.001 s is 1e\+07 steps; at most 20000"):
+        DMP(7, dt=0.001).trajectory(run_time=1e4)
