@@ -15,6 +15,7 @@ from typing import ClassVar
 import numpy as np
 from py_trees.common import Access, Status
 
+from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
 
 
@@ -93,6 +94,13 @@ class AtPose(SimulationBehaviour):
         self.configuration = None if configuration is None else np.asarray(configuration, dtype=float)
         if self.configuration is None:
             self.use("configuration")
+
+    def setup(self, **kwargs) -> None:
+        super().setup(**kwargs)
+        dofs = self.executor.arm.dofs  # a given configuration is checked before the run starts
+        if self.configuration is not None and self.configuration.shape != (dofs,):
+            given = len(self.configuration)
+            raise InputError(f"{self.name}: configuration needs {dofs} values (one per joint), got {given}")
 
     def update(self) -> Status:
         goal = (
