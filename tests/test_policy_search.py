@@ -103,3 +103,21 @@ def test_bad_input_is_refused_by_name():
         )
     with pytest.raises(InputError, match="budget"):
         policy_search(sphere, [CMAES(WarmStart(np.zeros(2), 1.0), seed=0)], budget=0)
+
+
+@pytest.mark.slow
+def test_a_search_on_throwing_gives_the_same_curve_on_threads_and_ray():
+    """One batch per generation through ThrowingTask.evaluate; the backend changes nothing."""
+    from besman.sim.throwing import ThrowingTask
+
+    task = ThrowingTask()
+    taus = np.array([[-3.0, -2.0], [-5.0, 0.0]])
+
+    def search(backend):
+        optimizers = [CMAES(WarmStart(task.default_theta(), 0.3), seed=s) for s in range(2)]
+        objective = lambda thetas, owners: task.evaluate(thetas, taus[owners], backend=backend).rewards  # noqa: E731
+        return [result.curve() for result in policy_search(objective, optimizers, budget=34)]
+
+    for threads, ray in zip(search("threads"), search("ray"), strict=True):
+        np.testing.assert_array_equal(threads, ray)
+        assert threads[-1, 2] > threads[0, 2]  # the best so far improved on the start
