@@ -11,6 +11,7 @@ import json
 import math
 import os
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -168,14 +169,50 @@ def _print_summary(summary: dict, as_json: bool) -> None:
         print(f"failed at {summary['failed_node']}: {summary['message']}")
 
 
+def _watcher(args: argparse.Namespace, viewers: list):
+    """With --view: the factory of the runner's observer that serves the run in the browser (the viewer it
+    starts goes into ``viewers``)."""
+    if not args.view:
+        return None
+
+    def watch(runner):
+        from besman.sim.viewer import Viewer
+        from besman.trees.watching import Watch
+
+        viewer = Viewer(runner.executor.world.model, host=args.host, port=args.port)
+        viewers.append(viewer)
+        print(
+            f"viewer: {viewer.url} (the run goes at {args.speed:g}x real time)", file=sys.stderr, flush=True
+        )
+        return Watch(viewer, args.speed)
+
+    return watch
+
+
+def _serve(viewers: list, code: int) -> int:
+    """Keeps the viewer of a finished run open until Ctrl-C."""
+    if not viewers:
+        return code
+    print(f"the run is over; the viewer stays at {viewers[0].url} until Ctrl-C", file=sys.stderr, flush=True)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        viewers[0].close()
+        return code
+
+
 def _run(args: argparse.Namespace) -> int:
     from besman.trees.tabletop import run_on_tabletop
 
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,))
-    summary = run_on_tabletop(args.file, _parse_sets(args.set), seed=args.seed, log=args.log)
+    viewers: list = []
+    summary = run_on_tabletop(
+        args.file, _parse_sets(args.set), seed=args.seed, log=args.log, watch=_watcher(args, viewers)
+    )
     _print_summary(summary, args.json)
-    return 0 if summary["status"] == "SUCCESS" else 1
+    return _serve(viewers, 0 if summary["status"] == "SUCCESS" else 1)
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -186,17 +223,22 @@ def _demo(args: argparse.Namespace) -> int:
         check_output(args.log, option="--log", suffixes=(".jsonl",))
     if not args.json:  # --json prints the summary alone
         print("AILA grasps the box on the table and places it on the shelf (grasp-then-place tree)")
+    viewers: list = []
     summary = run_on_tabletop(
-        grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, log=args.log
+        grasp_then_place(),
+        {"object": (0.55, -0.08), "place": (0.54, -0.41)},
+        log=args.log,
+        watch=_watcher(args, viewers),
     )
     _print_summary(summary, args.json)
     if not args.json:
         print(
-            "next: the same tree as a file, elsewhere on the table, with a log:\n"
+            "next: watch it in the browser (besman demo --view), or run the same tree as a file elsewhere on "
+            "the table with a log:\n"
             "  besman run examples/trees/grasp_then_place.yaml --set object=0.5,-0.05 --set place=0.58,-0.44 "
             "--log run.jsonl"
         )
-    return 0 if summary["status"] == "SUCCESS" else 1
+    return _serve(viewers, 0 if summary["status"] == "SUCCESS" else 1)
 
 
 TASKS = ("pick-place", "throwing", "throwing-hardware")
@@ -388,6 +430,16 @@ def _experiment_throwing(args: argparse.Namespace) -> int:
     return 0
 
 
+def _view_options(command: argparse.ArgumentParser) -> None:
+    view = command.add_argument_group("browser viewer")
+    view.add_argument("--view", action="store_true", help="watch the run in the browser (viser)")
+    view.add_argument(
+        "--host", default="127.0.0.1", help="the viewer's address (default 127.0.0.1: this machine)"
+    )
+    view.add_argument("--port", type=int, default=8080, help="the viewer's port (busy: the next free one)")
+    view.add_argument("--speed", type=float, default=1.0, help="the run's pace with --view, x real time")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="besman", description=__doc__)
     parser.add_argument("--version", action="version", version=f"besman {__version__}")
@@ -430,11 +482,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--seed", type=int, default=None, help="draws object and place when not set")
     run.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _view_options(run)
     run.set_defaults(handler=_run)
 
     demo = commands.add_parser("demo", help="grasp-then-place at a default configuration")
     demo.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
     demo.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _view_options(demo)
     demo.set_defaults(handler=_demo)
 
     tasks = commands.add_parser("tasks", help="the tasks' parameters")

@@ -10,6 +10,8 @@
   place planning.
 - :mod:`besman.sim.throwing`, :mod:`besman.sim.pick_place` - the tasks, evaluated in batches
   (:mod:`besman.sim.evaluation`: local cores or Ray).
+- :mod:`besman.sim.viewer` - the browser viewer (viser, mjviser): the world posed from the simulation and a
+  tree panel.
 """
 
 from besman.sim.arm import Arm

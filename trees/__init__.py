@@ -5,7 +5,8 @@ given to ``BehaviourTree.setup(executor=...)``, using the blackboard by declared
 (:mod:`besman.trees.base`); subtree idioms (:func:`grasp`, :func:`place`, :func:`grasp_then_place`,
 :mod:`besman.trees.idioms`) compose them; :func:`load_tree` reads YAML tree files (node types in
 :mod:`besman.trees.nodes`); :class:`Runner` ticks a tree in lockstep with the simulation and logs every
-tick; :mod:`besman.trees.tabletop` runs trees on AILA's tabletop.
+tick; :mod:`besman.trees.tabletop` runs trees on AILA's tabletop; :mod:`besman.trees.watching` shows a run
+in the browser viewer.
 """
 
 from besman.trees.conditions import AtPose, ObjectAt, ObjectGrasped

@@ -26,7 +26,7 @@ import os
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -57,17 +57,20 @@ class RunResult:
 
 
 def node_paths(root: py_trees.behaviour.Behaviour) -> dict[Any, str]:
-    """A unique path per node ("root/child/grandchild", with [i] when siblings share a name)."""
+    """A unique path per node ("root/child/grandchild", with [i] when siblings share a name), parents before
+    their children in the tree's order."""
     paths: dict[Any, str] = {}
 
-    pending = [(root, root.name)]  # a stack, not recursion: any depth, linear time
+    pending = [(root, root.name)]  # a stack, not recursion: any depth, linear time; depth-first order
     while pending:
         node, path = pending.pop()
         paths[node.id] = path
         names = Counter(child.name for child in node.children)
-        for index, child in enumerate(node.children):
-            label = child.name if names[child.name] == 1 else f"{child.name}[{index}]"
-            pending.append((child, f"{path}/{label}"))
+        labelled = [
+            (child, child.name if names[child.name] == 1 else f"{child.name}[{index}]")
+            for index, child in enumerate(node.children)
+        ]
+        pending.extend((child, f"{path}/{label}") for child, label in reversed(labelled))
     return paths
 
 
@@ -93,6 +96,7 @@ class Runner:
         rate: ticks per simulated second.
         max_sim_time: simulated seconds after which the run stops as a FAILURE.
         run_info: what to write in the log header (tree file, settings, seed).
+        observe: called after every tick with the runner and the tick's record (e.g. a viewer).
     """
 
     def __init__(
@@ -103,6 +107,7 @@ class Runner:
         rate: float = 50.0,
         max_sim_time: float = 120.0,
         run_info: dict | None = None,
+        observe: Callable[[Runner, dict], None] | None = None,
     ) -> None:
         cycles = 1.0 / (rate * executor.config.control_period)
         if abs(cycles - round(cycles)) > 1e-9 or round(cycles) < 1:
@@ -112,6 +117,7 @@ class Runner:
         self.root, self.executor, self.rate, self.max_sim_time = root, executor, rate, max_sim_time
         self.cycles_per_tick = round(cycles)
         self.run_info = dict(run_info or {})
+        self.observe = observe
         self.records: list[dict] = []
         self.tick_seconds: list[float] = []  # wall time of each tick of the tree
         self.record_seconds: list[float] = []  # wall time of recording each tick
@@ -169,6 +175,8 @@ class Runner:
             self.records.append(self._record())
             if stream is not None:
                 stream.write(self.records[-1])
+            if self.observe is not None:
+                self.observe(self, self.records[-1])
             self.tick_seconds.append(middle - begin)
             self.record_seconds.append(time.perf_counter() - middle)
             if status is not Status.RUNNING:

@@ -10,6 +10,7 @@ logged run again and compare its statuses.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -81,11 +82,15 @@ def run_on_tabletop(
     seed: int | None = None,
     log: str | Path | None = None,
     max_sim_time: float = 120.0,
+    watch: Callable[[Runner], Callable[[Runner, dict], None]] | None = None,
 ) -> dict:
     """Runs a tree on AILA's tabletop (:func:`tabletop_run`) and returns the summary: status, placement error
     measured in the simulation (None for a tree that does not read the place target), the box's position,
-    simulated and wall time, ticks, failed node and message."""
+    simulated and wall time, ticks, failed node and message. ``watch`` makes the runner's observer (e.g. a
+    browser viewer, :class:`~besman.trees.watching.Watch`) once the runner and its world exist."""
     runner, settings = tabletop_run(tree, values, seed=seed, max_sim_time=max_sim_time)
+    if watch is not None:
+        runner.observe = watch(runner)
     result = runner.run(log=log)
     box = runner.executor.world.object_pose("box").position
     places = "place" in task_keys_read(runner.root)  # a tree that never reads the target places nothing

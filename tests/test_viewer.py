@@ -1,0 +1,154 @@
+"""The browser viewer, seen by a real browser: Debian's Chromium, headless, driven by Playwright."""
+
+import io
+import shutil
+import threading
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from besman.sim.viewer import Viewer
+from besman.trees import grasp_then_place
+from besman.trees.tabletop import tabletop_run
+from besman.trees.watching import Watch
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+FLAGS = [  # software WebGL that finishes its frames (see ../shared/reference/stack.md)
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+]
+WIDTH, HEIGHT = 1280, 800
+
+needs_chromium = pytest.mark.skipif(
+    shutil.which("chromium") is None, reason="needs Debian's chromium (apt-get install chromium)"
+)
+
+
+def project(points: np.ndarray, camera) -> np.ndarray:
+    """Pixels (x right, y down) of world points in the browser's camera (three.js: a vertical fov)."""
+    forward = np.asarray(camera.look_at) - np.asarray(camera.position)
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, np.asarray(camera.up_direction))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    offsets = points - np.asarray(camera.position)
+    depth = offsets @ forward
+    scale = np.tan(camera.fov / 2) * depth
+    x = (offsets @ right) / (scale * camera.aspect)
+    y = (offsets @ up) / scale
+    return np.column_stack([(x + 1) / 2 * WIDTH, (1 - y) / 2 * HEIGHT])
+
+
+def luminance(image: np.ndarray) -> np.ndarray:
+    return image[..., :3] @ np.array([0.299, 0.587, 0.114]) / 255.0
+
+
+@pytest.mark.slow
+@needs_chromium
+def test_a_running_grasp_then_place_is_seen_in_the_browser_with_its_tree():
+    from playwright.sync_api import sync_playwright
+
+    runner, _ = tabletop_run(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, seed=0)
+    world = runner.executor.world
+    viewer = Viewer(world.model)
+    runner.observe = Watch(viewer, speed=1.0)  # about 10 s of wall time
+    results = []
+    run = threading.Thread(target=lambda: results.append(runner.run()))
+    try:
+        with sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+            page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
+            page.goto(viewer.url)
+            page.wait_for_function("document.body.innerText.includes('Behaviour tree')", timeout=30_000)
+            run.start()
+            page.wait_for_function("document.body.innerText.includes('RUNNING')", timeout=30_000)
+            page.wait_for_timeout(1500)  # software WebGL: let a few frames land
+            assert run.is_alive(), "the screenshot is taken while the tree runs"
+            before = world.data.geom_xpos.copy()
+            image = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB"))
+            # The drawn frame lies between these two poses: parts that stood still are where they were drawn.
+            posed = world.data.geom_xpos.copy(), world.data.xpos.copy()
+            still = np.linalg.norm(posed[0] - before, axis=1) < 0.01
+            (client,) = viewer.server.get_clients().values()
+            camera = client.camera
+            run.join(timeout=60)
+            page.wait_for_function("document.body.innerText.includes('succeeded')", timeout=30_000)
+            browser.close()
+    finally:
+        viewer.close()
+    assert results and results[0].status == "SUCCESS"
+    assert image.std() > 10, "not a blank page"
+    # The robot's dark parts (wheels, joints, fingers) where the camera sees them: dark pixels; the empty
+    # space above the robot: the light background.
+    model = world.model
+    colour = np.where(
+        (model.geom_matid >= 0)[:, None], model.mat_rgba[np.maximum(model.geom_matid, 0)], model.geom_rgba
+    )
+    root = model.body_rootid[model.jnt_bodyid[model.joint(runner.executor.arm.joints[0]).id]]
+    robot = model.body_rootid[model.geom_bodyid] == root
+    dark = robot & still & (colour[:, :3] @ [0.299, 0.587, 0.114] < 0.25) & (colour[:, 3] > 0.9)
+    pixels = project(posed[0][dark], camera)
+    visible = (
+        (pixels[:, 0] > 5) & (pixels[:, 0] < WIDTH - 360) & (pixels[:, 1] > 5) & (pixels[:, 1] < HEIGHT - 5)
+    )
+    assert visible.sum() >= 5
+    shade = luminance(image)
+
+    def darkest_near(x, y):
+        return shade[int(y) - 4 : int(y) + 5, int(x) - 4 : int(x) + 5].min()
+
+    sky = project(posed[1][model.body_rootid == root] + [0.0, 0.0, 1.5], camera)
+    sky = sky[(sky[:, 0] > 5) & (sky[:, 0] < WIDTH - 360) & (sky[:, 1] > 5) & (sky[:, 1] < HEIGHT - 5)]
+    background = np.median([shade[int(y), int(x)] for x, y in sky])
+    assert len(sky) >= 5 and background > 0.8, "the space above the robot is empty and light"
+    hits = [darkest_near(x, y) < background - 0.2 for x, y in pixels[visible]]
+    assert np.mean(hits) > 0.6, f"{sum(hits)} of {len(hits)} dark robot parts drawn dark"
+
+
+@pytest.mark.slow
+def test_demo_view_serves_on_localhost_until_interrupted():
+    """``besman demo --view`` prints the URL, runs, keeps serving the page, and ends cleanly on Ctrl-C."""
+    import re
+    import signal
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    process = subprocess.Popen(
+        [sys.executable, "-m", "besman", "demo", "--view", "--port", "0", "--speed", "20"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        lines = []
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not any("viewer stays" in line for line in lines):
+            lines.append(process.stderr.readline())
+        url = re.search(r"http://127\.0\.0\.1:\d+", "".join(lines)).group(0)  # bound to this machine
+        with urllib.request.urlopen(url, timeout=10) as response:
+            assert response.status == 200 and b"<html" in response.read().lower()
+    finally:
+        process.send_signal(signal.SIGINT)
+        out, _ = process.communicate(timeout=30)
+    assert process.returncode == 0 and out.splitlines()[1].startswith("SUCCESS: placement error")
+
+
+def test_the_viewer_binds_this_machine_by_default():
+    from besman.sim.world import tabletop_world
+
+    viewer = Viewer(tabletop_world().model)
+    try:
+        assert viewer.server.get_host() == "127.0.0.1" and viewer.url.startswith("http://127.0.0.1:")
+    finally:
+        viewer.close()
