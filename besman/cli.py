@@ -190,16 +190,28 @@ def _watcher(args: argparse.Namespace, viewers: list):
 
 
 def _serve(viewers: list, code: int) -> int:
-    """Keeps the viewer of a finished run open until Ctrl-C."""
+    """Keeps a viewer (anything with ``url`` and ``close()``) open until Ctrl-C."""
     if not viewers:
         return code
-    print(f"the run is over; the viewer stays at {viewers[0].url} until Ctrl-C", file=sys.stderr, flush=True)
+    print(f"the viewer stays at {viewers[0].url} until Ctrl-C", file=sys.stderr, flush=True)
     try:
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:
         viewers[0].close()
         return code
+
+
+def _view(args: argparse.Namespace) -> int:
+    from besman.trees.watching import Replay
+
+    replay = Replay(args.replay, {"host": args.host, "port": args.port})
+    print(
+        f"replay of {args.replay} ({len(replay.records)} ticks): {replay.viewer.url}",
+        file=sys.stderr,
+        flush=True,
+    )
+    return _serve([replay], 0)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -490,6 +502,16 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--json", action="store_true", help="print the summary as JSON")
     _view_options(demo)
     demo.set_defaults(handler=_demo)
+
+    view = commands.add_parser("view", help="replay a run log in the browser (scene and tree on a timeline)")
+    view.add_argument(
+        "--replay", required=True, metavar="LOG", help="a run's JSON-lines log (besman run --log)"
+    )
+    view.add_argument(
+        "--host", default="127.0.0.1", help="the viewer's address (default 127.0.0.1: this machine)"
+    )
+    view.add_argument("--port", type=int, default=8080, help="the viewer's port (busy: the next free one)")
+    view.set_defaults(handler=_view)
 
     tasks = commands.add_parser("tasks", help="the tasks' parameters")
     task_commands = tasks.add_subparsers(dest="tasks_command", metavar="ACTION", required=True)

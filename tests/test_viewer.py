@@ -152,3 +152,54 @@ def test_the_viewer_binds_this_machine_by_default():
         assert viewer.server.get_host() == "127.0.0.1" and viewer.url.startswith("http://127.0.0.1:")
     finally:
         viewer.close()
+
+
+@pytest.mark.slow
+@needs_chromium
+def test_a_logged_run_replays_scene_and_tree_on_one_timeline(tmp_path):
+    """``besman view --replay``: the slider picks a tick; the scene takes that tick's logged pose and the tree
+    panel its statuses, in the browser too; "play" advances the timeline."""
+    import time
+
+    from playwright.sync_api import sync_playwright
+
+    from besman.trees.tabletop import run_on_tabletop
+    from besman.trees.watching import Replay
+
+    log = tmp_path / "run.jsonl"
+    run_on_tabletop(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, log=log)
+    replay = Replay(log, {"port": 0})
+    try:
+        middle = len(replay.records) // 2
+        replay.slider.value = middle
+        time.sleep(0.5)
+        record = replay.records[middle]
+        arm = replay.world.data.qpos[replay._arm]
+        np.testing.assert_allclose(arm, record["robot"]["joints"], atol=1e-5)
+        box = replay.world.data.qpos[replay._objects["box"] : replay._objects["box"] + 3]
+        np.testing.assert_allclose(box, record["robot"]["objects"]["box"][:3], atol=1e-5)
+        with sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+            page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
+            page.goto(replay.viewer.url)
+            page.wait_for_function(f"document.body.innerText.includes('tick {middle},')", timeout=30_000)
+            running = [
+                path.rsplit("/", 1)[-1] for path, status in record["statuses"].items() if status == "RUNNING"
+            ]
+            assert running and all(name in page.inner_text("body") for name in running)
+            replay.play.value = True
+            page.wait_for_function(f"!document.body.innerText.includes('tick {middle},')", timeout=30_000)
+            browser.close()
+        assert int(replay.slider.value) != middle
+    finally:
+        replay.close()
+
+
+def test_a_replay_of_a_missing_or_foreign_log_is_one_clear_error(tmp_path, capsys):
+    from tests.helpers import run_cli
+
+    code, _, err = run_cli(capsys, "view", "--replay", str(tmp_path / "none.jsonl"))
+    assert code == 2 and "none.jsonl: no such file" in err
+    (tmp_path / "other.jsonl").write_text('{"kind": "something else"}\n')
+    code, _, err = run_cli(capsys, "view", "--replay", str(tmp_path / "other.jsonl"))
+    assert code == 2 and "not a besman run log" in err

@@ -6,8 +6,10 @@ limit. Every tick is recorded: the status and feedback of every visited node (by
 the blackboard writes of that tick, and a summary of the robot and objects. The log is JSON lines:
 
 - a header ``{"schema_version": 1, "kind": "besman-run-log", "run": {...}}`` (what was run, with which
-  settings: enough to run it again),
-- one line per tick ``{"tick", "time", "statuses", "feedback", "blackboard", "robot"}``,
+  settings: enough to run it again; and ``nodes``, the tree's node paths in order),
+- one line per tick ``{"tick", "time", "statuses", "feedback", "blackboard", "robot"}`` (``robot``: the arm's
+  joints, the gripper command, the finger joints, and each object's position and orientation: what a replay
+  needs to pose the scene),
 - a result line ``{"result": {...}}`` (status SUCCESS, FAILURE, or INTERRUPTED for a run stopped by Ctrl-C).
 
 With a log file, the runner writes it as the run goes (:class:`LogStream`), and the file appears, whole,
@@ -74,6 +76,12 @@ def node_paths(root: py_trees.behaviour.Behaviour) -> dict[Any, str]:
     return paths
 
 
+def object_addresses(world) -> dict[str, int]:
+    """Where each free object's pose (position, then w-x-y-z orientation) sits in ``qpos``."""
+    model = world.model
+    return {name: int(model.jnt_qposadr[model.joint(name).id]) for name in world.objects}
+
+
 def _jsonable(value: Any) -> Any:
     """Blackboard values as JSON: arrays as lists, primitives by name, anything else by its repr."""
     if isinstance(value, MovementPrimitive):
@@ -123,17 +131,18 @@ class Runner:
         self.record_seconds: list[float] = []  # wall time of recording each tick
         self.paths = node_paths(root)
         self.nodes = [(node, self.paths[node.id]) for node in root.iterate()]  # the tree's shape is fixed
-        model = executor.world.model  # where each free object's position sits in qpos
-        self._object_addresses = {
-            name: int(model.jnt_qposadr[model.joint(name).id]) for name in executor.world.objects
-        }
+        self._object_addresses = object_addresses(executor.world)
+        hand = executor.hand
+        self._fingers = None if hand is None else hand.gripper.qpos_indices
 
     def run(self, log: str | Path | None = None) -> RunResult:
         """Runs to the end and returns the result (the records are in ``self.records``). With ``log``, the
         JSON-lines log is written as the run goes (:class:`LogStream`): an interrupted run (Ctrl-C) leaves a
         well-formed log up to the interruption, ending with an ``INTERRUPTED`` result, before the
         ``KeyboardInterrupt`` goes on."""
-        stream = None if log is None else LogStream(log, self.run_info)
+        stream = (
+            None if log is None else LogStream(log, {**self.run_info, "nodes": list(self.paths.values())})
+        )
         py_trees.blackboard.Blackboard.enable_activity_stream(maximum_size=10000)
         start_sim, start_wall = self.executor.time, time.perf_counter()
         try:
@@ -221,8 +230,9 @@ class Runner:
         robot = {
             "joints": self.executor.arm.measured().round(5).tolist(),
             "gripper": None if gripper is None else round(gripper, 5),
-            "objects": {
-                name: qpos[address : address + 3].round(5).tolist()
+            "fingers": None if self._fingers is None else qpos[self._fingers].round(5).tolist(),
+            "objects": {  # position and orientation (w, x, y, z)
+                name: qpos[address : address + 7].round(5).tolist()
                 for name, address in self._object_addresses.items()
             },
         }
