@@ -2,6 +2,7 @@
 themselves (side by side in one run), not asserted here."""
 
 import math
+import shutil
 
 import pytest
 from helpers import run_benchmark
@@ -62,6 +63,20 @@ def test_policy_search_benchmark_sets_the_optimisers_beside_their_rollouts():
             numbers["optimizer_ms_per_generation"] / numbers["rollouts_ms_per_generation"]
         )
         assert numbers["target_overhead"] == 0.1
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(
+    shutil.which("chromium") is None, reason="needs Debian's chromium (apt-get install chromium)"
+)
+def test_viewer_benchmark_reports_its_cost_beside_the_run():
+    report = run_benchmark("viewer.py", "--runs", "1")
+    assert report["benchmark"] == "viewer" and 0 < report["update_ms"] < 1000
+    assert report["real_time_factor_without_viewer"] > 0 and report["real_time_factor_with_viewer"] > 0
+    assert report["viewer_share_of_wall_time"] == pytest.approx(
+        1 - report["real_time_factor_with_viewer"] / report["real_time_factor_without_viewer"]
+    )
+    assert 0 < report["server_side_share_of_wall_time"] < 1 and report["target_share"] == 0.2
 
 
 @pytest.mark.slow

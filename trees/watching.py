@@ -33,9 +33,10 @@ class Watch:
         data = runner.executor.world.data
         if self._start is None:
             self._start = (data.time, time.perf_counter())
-        # A frame when one is due, and always the run's last tick.
-        self.viewer.show(data, force=runner.root.status is not Status.RUNNING)
-        self.viewer.show_tree(record, list(runner.paths.values()))
+        # A frame when one is due, and always the run's last tick; the tree panel with every frame (every tick
+        # at real-time pace; a faster run's ticks are all in its log).
+        if self.viewer.show(data, force=runner.root.status is not Status.RUNNING):
+            self.viewer.show_tree(record, list(runner.paths.values()))
         ahead = (data.time - self._start[0]) / self.speed - (time.perf_counter() - self._start[1])
         if ahead > 0:
             time.sleep(ahead)
