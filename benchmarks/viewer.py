@@ -18,24 +18,12 @@ import math
 import statistics
 import time
 
-from besman.sim.viewer import Viewer
+from besman.sim.viewer import Viewer, headless_chromium
 from besman.trees import grasp_then_place
 from besman.trees.tabletop import tabletop_run
 from besman.trees.watching import Watch
 
 SETTINGS = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
-CHROMIUM_FLAGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--use-angle=swiftshader",
-    "--enable-unsafe-swiftshader",
-]
 TARGET_SHARE = 0.2
 
 
@@ -57,7 +45,7 @@ def measure(runs: int) -> dict:
     viewer = Viewer(runner.executor.world.model)
     plain, viewed, updates, shares, observing = [], [], [], [], []
     with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_FLAGS)
+        browser = headless_chromium(playwright)
         page = browser.new_page(viewport={"width": 1280, "height": 800})
         page.goto(viewer.url)
         page.wait_for_function("document.body.innerText.includes('Behaviour tree')", timeout=60_000)

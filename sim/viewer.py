@@ -22,7 +22,26 @@ import viser
 from mjviser import ViserMujocoScene
 
 FRAME_PERIOD = 1.0 / 60.0  # s of wall time between frames during a run
+# What makes Debian's headless Chromium draw viser's WebGL scene whole, in software (tests, benchmarks and
+# screenshots drive it through Playwright with these).
+HEADLESS_CHROMIUM_FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+)
 STATUS_COLOURS = {"RUNNING": "#1f77b4", "SUCCESS": "#2ca02c", "FAILURE": "#d62728", "INVALID": "#999999"}
+
+
+def headless_chromium(playwright, executable: str = "/usr/bin/chromium"):
+    """Debian's Chromium, headless, launched through Playwright (a ``sync_playwright()`` context)."""
+    return playwright.chromium.launch(executable_path=executable, args=list(HEADLESS_CHROMIUM_FLAGS))
 
 
 class Viewer:

@@ -8,24 +8,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from besman.sim.viewer import Viewer
+from besman.sim.viewer import Viewer, headless_chromium
 from besman.trees import grasp_then_place
 from besman.trees.tabletop import tabletop_run
 from besman.trees.watching import Watch
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-FLAGS = [  # software WebGL that finishes its frames (see ../shared/reference/stack.md)
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--use-angle=swiftshader",
-    "--enable-unsafe-swiftshader",
-]
 WIDTH, HEIGHT = 1280, 800
 
 needs_chromium = pytest.mark.skipif(
@@ -65,7 +53,7 @@ def test_a_running_grasp_then_place_is_seen_in_the_browser_with_its_tree():
     run = threading.Thread(target=lambda: results.append(runner.run()))
     try:
         with sync_playwright() as playwright:
-            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+            browser = headless_chromium(playwright, CHROMIUM)
             page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
             page.goto(viewer.url)
             page.wait_for_function("document.body.innerText.includes('Behaviour tree')", timeout=30_000)
@@ -179,7 +167,7 @@ def test_a_logged_run_replays_scene_and_tree_on_one_timeline(tmp_path):
         box = replay.world.data.qpos[replay._objects["box"] : replay._objects["box"] + 3]
         np.testing.assert_allclose(box, record["robot"]["objects"]["box"][:3], atol=1e-5)
         with sync_playwright() as playwright:
-            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+            browser = headless_chromium(playwright, CHROMIUM)
             page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
             page.goto(replay.viewer.url)
             page.wait_for_function(f"document.body.innerText.includes('tick {middle},')", timeout=30_000)
