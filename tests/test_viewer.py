@@ -191,3 +191,62 @@ def test_a_replay_of_a_missing_or_foreign_log_is_one_clear_error(tmp_path, capsy
     (tmp_path / "other.jsonl").write_text('{"kind": "something else"}\n')
     code, _, err = run_cli(capsys, "view", "--replay", str(tmp_path / "other.jsonl"))
     assert code == 2 and "not a besman run log" in err
+
+
+@pytest.mark.slow
+@needs_chromium
+def test_the_browser_runs_pauses_breaks_and_moves_the_task():
+    """Run clicked in the page: the simulation advances and the tree panel shows RUNNING, then SUCCESS; a
+    breakpoint pauses the run where its node is ticked; Step runs one tick; moving the object's gizmo sets
+    tau, and the next run grasps the box at its new place."""
+    import time
+
+    from playwright.sync_api import sync_playwright
+
+    from besman.trees.session import Session
+
+    session = Session(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, {"port": 0})
+    session.speed.value = 2.0  # about 5 s: long enough to see it running
+    try:
+        with sync_playwright() as playwright:
+            browser = headless_chromium(playwright, CHROMIUM)
+            page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
+            page.goto(session.viewer.url)
+            page.wait_for_function("document.body.innerText.includes('Behaviour tree')", timeout=30_000)
+            page.get_by_role("button", name="Run", exact=True).click()
+            page.wait_for_function("document.body.innerText.includes('RUNNING')", timeout=30_000)
+            assert session.runner.executor.time > 0
+            page.wait_for_function("document.body.innerText.includes('SUCCESS: succeeded')", timeout=60_000)
+            assert session.result.status == "SUCCESS" and session.runner.executor.time > 5.0
+            plan_place = next(path for path in session.runner.paths.values() if path.endswith("/plan place"))
+            session.breakpoint.value = plan_place
+            session.speed.value = 10.0
+            page.get_by_role("button", name="Run", exact=True).click()  # a new run
+            page.wait_for_function(
+                "document.body.innerText.includes('paused at the breakpoint')", timeout=60_000
+            )
+            ticks = len(session.runner.records)
+            assert session.paused and plan_place in session.runner.records[-1]["statuses"]
+            page.get_by_role("button", name="Step", exact=True).click()
+            deadline = time.monotonic() + 10
+            while (
+                len(session.runner.records) == ticks or not session.paused
+            ) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert len(session.runner.records) == ticks + 1 and session.paused
+            browser.close()
+        session.breakpoint.value = "(none)"
+        session.gizmos["object"].position = (0.5, -0.05, session.gizmos["object"].position[2])
+        session.set_value("object", session.gizmos["object"].position[:2])  # what letting go of it does
+        session.reset()  # the paused run ends; the next one uses the new tau
+        session.run()
+        deadline = time.monotonic() + 60
+        while session.result is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert session.result.status == "SUCCESS"
+        messages = [message for record in session.runner.records for message in record["feedback"].values()]
+        assert any(message.startswith("box at [0.5, -0.05,") for message in messages), (
+            "perceived where it was moved"
+        )
+    finally:
+        session.close()

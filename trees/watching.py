@@ -29,6 +29,10 @@ class Watch:
         self.viewer, self.speed = viewer, speed
         self._start: tuple[float, float] | None = None  # (sim time, wall time) of the first tick
 
+    def restart_pacing(self) -> None:
+        """Paces from the next tick on (after a pause, the run does not race to catch up)."""
+        self._start = None
+
     def __call__(self, runner: Runner, record: dict) -> None:
         data = runner.executor.world.data
         if self._start is None:

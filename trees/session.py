@@ -1,0 +1,196 @@
+"""An interactive run in the browser: Run, Pause, Step, Reset and speed; a breakpoint; gizmos for the task.
+
+A :class:`Session` holds a tree and the task values of AILA's tabletop (``object``: where the box stands,
+``place``: where it goes). Its runs go in a background thread, driven by the viewer's controls:
+
+- **Run** starts a run (a new one after the last has ended) or resumes a paused one; **Pause** stops after the
+  current tick; **Step** runs one tick and pauses; **Reset** abandons the run and sets up a new one with the
+  current task values; **speed** is the pace (x real time).
+- **Breakpoint**: a node chosen in the list pauses the run at the first tick that visits it (once per run).
+- Two draggable gizmos mark the object and the place target; letting go of one sets that task value (within
+  the task's bounds), and the next run uses it.
+
+The runner's observer (:class:`~besman.trees.watching.Watch`) does the waiting: between two ticks it blocks
+while the session is paused, so the simulation stands exactly where the tree stopped.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+from py_trees.common import Status
+
+from besman.sim.pick_place import PICK_PLACE_BOUNDS
+from besman.sim.viewer import Viewer
+from besman.sim.world import SHELF, TABLE
+from besman.skills.errors import InputError
+from besman.trees.runner import Runner
+from besman.trees.tabletop import TreeSource, tabletop_run
+from besman.trees.watching import Watch
+
+NO_BREAKPOINT = "(none)"
+
+
+class _Abandoned(Exception):
+    """Raised inside a paused run's thread to end it (Reset)."""
+
+
+class Session:
+    """A tree on AILA's tabletop, run from the browser (see the module documentation)."""
+
+    def __init__(
+        self, tree: TreeSource, values: dict[str, tuple[float, float]], viewer_options: dict | None = None
+    ) -> None:
+        self.tree, self.values = tree, {name: tuple(map(float, value)) for name, value in values.items()}
+        self._lock = threading.Condition()
+        self._running = False  # the run may tick
+        self._steps = 0  # ticks left before pausing (-1: no limit)
+        self._abandon = False
+        self._thread: threading.Thread | None = None
+        self._watch: Watch | None = None  # made by the first tick of each run
+        self._breakpoint_hit = False
+        self.result = None
+        self.runner = self._new_runner()
+        self.viewer = Viewer(self.runner.executor.world.model, **(viewer_options or {}))
+        gui = self.viewer.server.gui
+        with gui.add_folder("Run"):
+            self.run_button, self.pause_button = gui.add_button("Run"), gui.add_button("Pause")
+            self.step_button, self.reset_button = gui.add_button("Step"), gui.add_button("Reset")
+            self.speed = gui.add_slider("speed (x real time)", min=0.1, max=10.0, step=0.1, initial_value=1.0)
+            self.breakpoint = gui.add_dropdown(
+                "break at", [NO_BREAKPOINT, *self.runner.paths.values()], initial_value=NO_BREAKPOINT
+            )
+            self.state = gui.add_markdown("ready")
+        self.run_button.on_click(lambda _: self.run())
+        self.pause_button.on_click(lambda _: self.pause())
+        self.step_button.on_click(lambda _: self.step())
+        self.reset_button.on_click(lambda _: self.reset())
+        self.speed.on_update(lambda _: self._watch and setattr(self._watch, "speed", float(self.speed.value)))
+        self.gizmos = {
+            "object": self._gizmo("object", TABLE.height),
+            "place": self._gizmo("place", SHELF.height),
+        }
+        self._show_initial()
+
+    # -- controls ------------------------------------------------------------------------------------------
+
+    def run(self) -> None:
+        """Starts a run (a new one after the last ended) or resumes the paused one."""
+        self._go(-1)
+
+    def step(self) -> None:
+        """One tick, then pause."""
+        self._go(1)
+
+    def pause(self) -> None:
+        with self._lock:
+            self._running = False
+            self._lock.notify_all()
+
+    def reset(self) -> None:
+        """Abandons the current run and sets up a new one with the current task values."""
+        with self._lock:
+            self._abandon, self._running = True, False
+            self._lock.notify_all()
+        if self._thread is not None:
+            self._thread.join()
+        with self._lock:
+            self._abandon, self._thread, self.result = False, None, None
+        self.runner = self._new_runner()
+        self._show_initial()
+
+    @property
+    def paused(self) -> bool:
+        with self._lock:
+            return self._thread is not None and self._thread.is_alive() and not self._running
+
+    def set_value(self, name: str, xy) -> None:
+        """Sets the task value ``name`` ("object" or "place") for the next run; refused outside the bounds."""
+        x, y = (float(v) for v in xy)
+        columns = {"object": slice(0, 2), "place": slice(2, 4)}[name]
+        tau = np.array([*self.values["object"], *self.values["place"]])
+        tau[columns] = (x, y)
+        PICK_PLACE_BOUNDS.check(tau)  # a value outside the task's box is refused with its name
+        self.values[name] = (x, y)
+        self.state.content = f"{name} set to ({x:.3f}, {y:.3f}); Reset or Run uses it"
+
+    def close(self) -> None:
+        self.reset()
+        self.viewer.close()
+
+    # -- internals -----------------------------------------------------------------------------------------
+
+    def _new_runner(self) -> Runner:
+        runner, _ = tabletop_run(self.tree, self.values)
+        self._watch, self._breakpoint_hit, self._made_with = None, False, dict(self.values)
+        runner.observe = self._observe
+        return runner
+
+    def _go(self, steps: int) -> None:
+        with self._lock:
+            finished = self._thread is not None and not self._thread.is_alive()
+        if finished:
+            self.reset()
+        elif self._thread is None and self._made_with != self.values:  # a gizmo moved since the set-up
+            self.runner = self._new_runner()
+            self._show_initial()
+        with self._lock:
+            self._steps, self._running = steps, True
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, daemon=True)
+                self._thread.start()
+            self._lock.notify_all()
+
+    def _run(self) -> None:
+        try:
+            self.result = self.runner.run()
+            self.state.content = f"{self.result.status}: {self.result.message}"
+        except _Abandoned:
+            pass
+
+    def _observe(self, runner: Runner, record: dict) -> None:
+        if self._watch is None:
+            self._watch = Watch(self.viewer, float(self.speed.value))
+        self._watch(runner, record)
+        with self._lock:
+            if self._steps > 0:
+                self._steps -= 1
+                if self._steps == 0:
+                    self._running = False
+            target = self.breakpoint.value
+            if not self._breakpoint_hit and target in record["statuses"]:
+                self._running, self._breakpoint_hit = False, True
+                self.state.content = f"paused at the breakpoint {target} (tick {record['tick']})"
+            if not self._running and runner.root.status is Status.RUNNING:
+                self.viewer.show(runner.executor.world.data, force=True)
+                self.viewer.show_tree(record, list(runner.paths.values()))
+                self._watch.restart_pacing()  # after the pause, real time counts from here
+            while not self._running and not self._abandon and runner.root.status is Status.RUNNING:
+                self._lock.wait()
+            if self._abandon:
+                raise _Abandoned
+
+    def _show_initial(self) -> None:
+        self.viewer.show(self.runner.executor.world.data, force=True)
+        for name, handle in self.gizmos.items():
+            handle.position = (*self.values[name], handle.position[2])
+
+    def _gizmo(self, name: str, height: float):
+        x, y = self.values[name]
+        handle = self.viewer.server.scene.add_transform_controls(
+            f"/task/{name}",
+            scale=0.15,
+            position=(x, y, height),
+            disable_rotations=True,
+            active_axes=(True, True, False),
+        )
+
+        @handle.on_update
+        def _(_) -> None:
+            try:
+                self.set_value(name, handle.position[:2])
+            except InputError as error:
+                self.state.content = f"not moved: {error}"
+
+        return handle
