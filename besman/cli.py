@@ -169,24 +169,33 @@ def _print_summary(summary: dict, as_json: bool) -> None:
         print(f"failed at {summary['failed_node']}: {summary['message']}")
 
 
-def _watcher(args: argparse.Namespace, viewers: list):
-    """With --view: the factory of the runner's observer that serves the run in the browser (the viewer it
-    starts goes into ``viewers``)."""
+def _tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple[dict, list]:
+    """Runs ``tree`` on AILA's tabletop; with --view inside a browser session that stays open after the run
+    (returned in the list, for :func:`_serve`)."""
+    from besman.trees.tabletop import run_on_tabletop, summary
+
     if not args.view:
-        return None
+        return run_on_tabletop(tree, values, seed=getattr(args, "seed", None), log=log), []
+    from besman.trees.session import Session
 
-    def watch(runner):
-        from besman.sim.viewer import Viewer
-        from besman.trees.watching import Watch
-
-        viewer = Viewer(runner.executor.world.model, host=args.host, port=args.port)
-        viewers.append(viewer)
-        print(
-            f"viewer: {viewer.url} (the run goes at {args.speed:g}x real time)", file=sys.stderr, flush=True
-        )
-        return Watch(viewer, args.speed)
-
-    return watch
+    session = Session(
+        tree,
+        values,
+        seed=getattr(args, "seed", None),
+        speed=args.speed,
+        viewer_options={"host": args.host, "port": args.port},
+    )
+    print(
+        f"viewer: {session.viewer.url} (the run goes at {args.speed:g}x real time)",
+        file=sys.stderr,
+        flush=True,
+    )
+    try:
+        result = session.start(log=log)
+    except BaseException:
+        session.close()
+        raise
+    return summary(session.runner, session.values, result), [session]
 
 
 def _serve(viewers: list, code: int) -> int:
@@ -215,32 +224,23 @@ def _view(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from besman.trees.tabletop import run_on_tabletop
 
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,))
-    viewers: list = []
-    summary = run_on_tabletop(
-        args.file, _parse_sets(args.set), seed=args.seed, log=args.log, watch=_watcher(args, viewers)
-    )
+    summary, viewers = _tabletop(args, args.file, _parse_sets(args.set), args.log)
     _print_summary(summary, args.json)
     return _serve(viewers, 0 if summary["status"] == "SUCCESS" else 1)
 
 
 def _demo(args: argparse.Namespace) -> int:
     from besman.trees import grasp_then_place
-    from besman.trees.tabletop import run_on_tabletop
 
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",))
     if not args.json:  # --json prints the summary alone
         print("AILA grasps the box on the table and places it on the shelf (grasp-then-place tree)")
-    viewers: list = []
-    summary = run_on_tabletop(
-        grasp_then_place(),
-        {"object": (0.55, -0.08), "place": (0.54, -0.41)},
-        log=args.log,
-        watch=_watcher(args, viewers),
+    summary, viewers = _tabletop(
+        args, grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, args.log
     )
     _print_summary(summary, args.json)
     if not args.json:

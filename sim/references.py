@@ -13,6 +13,7 @@ in all; the primitive's DMP keeps the new execution time.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,14 +88,33 @@ def at_rest(position: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return position, np.zeros_like(position), np.zeros_like(position)
 
 
-def _cartesian_reference(
-    arm: Arm, dmp: CartesianDMP, start: np.ndarray, settings: ReferenceSettings
-) -> Trajectory:
-    period = settings.period
+def hand_path(
+    arm: Arm, primitive: MovementPrimitive, state: tuple[np.ndarray, np.ndarray, np.ndarray], period: float
+) -> np.ndarray:
+    """The hand's positions (K, 3) every ``period`` s along ``primitive`` started in the joint ``state``: a
+    Cartesian primitive's own positions, a joint primitive's by forward kinematics (``primitive`` is left as
+    it was)."""
+    dmp = copy.deepcopy(primitive.dmp)
+    if isinstance(dmp, CartesianDMP):
+        _start_cartesian(dmp, arm, state[0], period)
+        return dmp.trajectory().positions
+    dmp.configure(start=state[0], start_velocity=state[1], start_acceleration=state[2], dt=period)
+    return arm.site_path(dmp.trajectory().positions)
+
+
+def _start_cartesian(dmp: CartesianDMP, arm: Arm, start: np.ndarray, period: float) -> None:
+    """A Cartesian DMP starts at the hand's pose at rest in the joint configuration ``start``."""
     pose = arm.site_pose(start)
     dmp.position.configure(start=pose.position, start_velocity=0.0, start_acceleration=0.0, dt=period)
     dmp.start_orientation = pose.quaternion
     dmp.start_angular_velocity = np.zeros(3)
+
+
+def _cartesian_reference(
+    arm: Arm, dmp: CartesianDMP, start: np.ndarray, settings: ReferenceSettings
+) -> Trajectory:
+    period = settings.period
+    _start_cartesian(dmp, arm, start, period)
     cartesian = dmp.trajectory()
     stride = max(1, round(settings.knot_period / period))
     knots = np.unique(np.r_[np.arange(0, len(cartesian.times), stride), len(cartesian.times) - 1])

@@ -7,7 +7,8 @@ pushed inside one ``server.atomic()`` per frame), with contacts and frames as to
 sends a frame whenever 1/60 s of wall time has passed since the last one (at least 30 frames per second of
 wall time, whatever the run's real-time factor) and always for the run's last tick. :meth:`Viewer.show_tree`
 writes the tree panel: every node of the running tree with its status colour and feedback, indented by
-depth, and the blackboard values written that tick.
+depth, the running path, the values that matter (the blackboard's, the active motion) and the details of a
+node chosen in the panel's list.
 """
 
 from __future__ import annotations
@@ -16,10 +17,14 @@ import contextlib
 import html
 import sys
 import time
+from collections.abc import Callable
 
 import mujoco
 import viser
 from mjviser import ViserMujocoScene
+
+from besman.sim.arm import Arm
+from besman.sim.overlays import Overlays
 
 FRAME_PERIOD = 1.0 / 60.0  # s of wall time between frames during a run
 # What makes Debian's headless Chromium draw viser's WebGL scene whole, in software (tests, benchmarks and
@@ -36,6 +41,7 @@ HEADLESS_CHROMIUM_FLAGS = (
     "--use-angle=swiftshader",
     "--enable-unsafe-swiftshader",
 )
+NO_NODE = "(choose a node)"
 STATUS_COLOURS = {"RUNNING": "#1f77b4", "SUCCESS": "#2ca02c", "FAILURE": "#d62728", "INVALID": "#999999"}
 
 
@@ -56,7 +62,14 @@ class Viewer:
         self.server.initial_camera.look_at = (0.4, -0.2, 0.9)
         with self.server.gui.add_folder("Behaviour tree"):
             self._time = self.server.gui.add_markdown("no run yet")
+            self._running = self.server.gui.add_markdown("")
             self._tree = self.server.gui.add_html("")
+            self._values = self.server.gui.add_html("")
+            self._inspect = self.server.gui.add_dropdown("details of", [NO_NODE], initial_value=NO_NODE)
+            self._details = self.server.gui.add_markdown("")
+        self._inspect.on_update(lambda _: self._show_details())
+        self.describe: Callable[[str], str] | None = None  # a node path -> its details (markdown)
+        self._overlays: Overlays | None = None
         self._last_frame = -float("inf")
 
     @property
@@ -73,24 +86,52 @@ class Viewer:
         self.scene.update_from_mjdata(data)
         return True
 
-    def show_tree(self, record: dict, paths: list[str]) -> None:
-        """The tree panel for one tick's record (``Runner`` records: statuses, feedback, blackboard)."""
-        rows = []
+    def overlays_for(self, arm: Arm) -> Overlays:
+        """The scene's overlays of ``arm``'s motions (made with the first call, then the same)."""
+        if self._overlays is None:
+            self._overlays = Overlays(self.server, arm)
+        return self._overlays
+
+    def set_nodes(self, paths: list[str], describe: Callable[[str], str]) -> None:
+        """The nodes the "details of" list offers, and what it shows for one of them."""
+        self._inspect.options = [NO_NODE, *paths]
+        self.describe = describe
+
+    def show_tree(self, record: dict, paths: list[str], values: dict[str, str] | None = None) -> None:
+        """The tree panel for one tick's record (``Runner`` records: statuses, feedback, blackboard): every
+        node with its status colour and feedback (the running ones in bold), the running path, ``values``
+        (e.g. the blackboard's latest values, the active motion) and the chosen node's details."""
+        statuses, rows = record["statuses"], []
         for path in paths:
-            status = record["statuses"].get(path, "INVALID")
-            depth, name = path.count("/"), path.rsplit("/", 1)[-1]
+            status = statuses.get(path, "INVALID")
+            depth, name = path.count("/"), html.escape(path.rsplit("/", 1)[-1])
             feedback = record["feedback"].get(path, "")
             rows.append(
                 f'<div style="margin-left:{12 * depth}px"><span style="color:{STATUS_COLOURS[status]}">'
-                f"&#9679;</span> {html.escape(name)} <small>{status}"
+                f"&#9679;</span> {f'<b>{name}</b>' if status == 'RUNNING' else name} <small>{status}"
                 f"{' - ' + html.escape(feedback) if feedback else ''}</small></div>"
             )
-        writes = "".join(
-            f"<div><code>{html.escape(change['key'])}</code> = {html.escape(str(change['value'])[:80])}</div>"
-            for change in record["blackboard"]
+        running = [path for path in paths if statuses.get(path) == "RUNNING"]
+        deepest = max(running, key=lambda path: path.count("/"), default=None)
+        table = "".join(
+            f"<div><code>{html.escape(key)}</code> = {html.escape(value[:120])}</div>"
+            for key, value in (values or {}).items()
         )
-        self._time.content = f"tick {record['tick']}, t = {record['time']:.2f} s"
-        self._tree.content = "".join(rows) + (f"<hr/>{writes}" if writes else "")
+        self._set(self._time, f"tick {record['tick']}, t = {record['time']:.2f} s")
+        self._set(self._running, "running: " + " > ".join(deepest.split("/")) if deepest else "")
+        self._set(self._tree, "".join(rows))
+        self._set(self._values, table)
+        self._show_details()
+
+    def _show_details(self) -> None:
+        chosen = self._inspect.value
+        self._set(self._details, self.describe(chosen) if chosen != NO_NODE and self.describe else "")
+
+    @staticmethod
+    def _set(handle, content: str) -> None:
+        """Sends a panel's content only when it changed (every change is a message to every browser)."""
+        if handle.content != content:
+            handle.content = content
 
     def close(self) -> None:
         with contextlib.redirect_stdout(sys.stderr):

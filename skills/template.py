@@ -196,8 +196,12 @@ class SkillTemplate:
     def instantiate(self, tau) -> MovementPrimitive:
         """A primitive for task tau: the prototype with theta = Theta(tau)."""
         mean, _ = self.predict(tau)
+        return self.primitive(mean, tau)
+
+    def primitive(self, theta, tau) -> MovementPrimitive:
+        """The prototype with ``theta`` (e.g. a sample of :meth:`distribution`), labelled as made for tau."""
         primitive = copy.deepcopy(self.prototype)
-        primitive.dmp.set_params(mean)
+        primitive.dmp.set_params(theta)
         primitive.provenance = {
             **primitive.provenance,
             "template": self.name,

@@ -59,7 +59,7 @@ def test_a_running_grasp_then_place_is_seen_in_the_browser_with_its_tree():
             page.wait_for_function("document.body.innerText.includes('Behaviour tree')", timeout=30_000)
             run.start()
             page.wait_for_function("document.body.innerText.includes('RUNNING')", timeout=30_000)
-            page.wait_for_timeout(1500)  # software WebGL: let a few frames land
+            page.wait_for_timeout(3000)  # software WebGL: the scene fades in over the first seconds
             assert run.is_alive(), "the screenshot is taken while the tree runs"
             before = world.data.geom_xpos.copy()
             image = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB"))
@@ -193,20 +193,46 @@ def test_a_replay_of_a_missing_or_foreign_log_is_one_clear_error(tmp_path, capsy
     assert code == 2 and "not a besman run log" in err
 
 
+def wait_until(condition, seconds: float = 30.0) -> bool:
+    import time
+
+    deadline = time.monotonic() + seconds
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return condition()
+
+
+def drag(page, session, name: str, dx: float) -> None:
+    """Drags the x arrow of a task gizmo by ``dx`` metres with the mouse, as a user would."""
+    (client,) = session.viewer.server.get_clients().values()
+    origin = np.asarray(session.gizmos[name].position)
+    start, end = project(np.array([origin + [0.1, 0.0, 0.0], origin + [0.1 + dx, 0.0, 0.0]]), client.camera)
+    page.mouse.move(*start)
+    page.mouse.down()
+    for k in range(1, 11):
+        page.mouse.move(*(start + (end - start) * k / 10))
+        page.wait_for_timeout(50)
+    page.mouse.up()
+
+
 @pytest.mark.slow
 @needs_chromium
 def test_the_browser_runs_pauses_breaks_and_moves_the_task():
     """Run clicked in the page: the simulation advances and the tree panel shows RUNNING, then SUCCESS; a
-    breakpoint pauses the run where its node is ticked; Step runs one tick; moving the object's gizmo sets
-    tau, and the next run grasps the box at its new place."""
-    import time
+    breakpoint pauses the run where its node is ticked; Step runs one tick; the object's gizmo dragged with
+    the mouse sets tau, and the next run grasps the box at its new place."""
+    import re
 
     from playwright.sync_api import sync_playwright
 
     from besman.trees.session import Session
 
-    session = Session(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, {"port": 0})
-    session.speed.value = 2.0  # about 5 s: long enough to see it running
+    session = Session(
+        grasp_then_place(),
+        {"object": (0.55, -0.08), "place": (0.54, -0.41)},
+        speed=2.0,
+        viewer_options={"port": 0},
+    )
     try:
         with sync_playwright() as playwright:
             browser = headless_chromium(playwright, CHROMIUM)
@@ -228,25 +254,123 @@ def test_the_browser_runs_pauses_breaks_and_moves_the_task():
             ticks = len(session.runner.records)
             assert session.paused and plan_place in session.runner.records[-1]["statuses"]
             page.get_by_role("button", name="Step", exact=True).click()
-            deadline = time.monotonic() + 10
-            while (
-                len(session.runner.records) == ticks or not session.paused
-            ) and time.monotonic() < deadline:
-                time.sleep(0.05)
-            assert len(session.runner.records) == ticks + 1 and session.paused
+            assert wait_until(lambda: len(session.runner.records) == ticks + 1 and session.paused, 10)
+            session.breakpoint.value = "(none)"
+            page.wait_for_timeout(2000)  # the paused scene, drawn whole
+            drag(page, session, "object", -0.06)
+            assert wait_until(lambda: session.values["object"][0] < 0.53, 10), session.state.content
+            moved = session.values["object"]
+            page.get_by_role(
+                "button", name="Run", exact=True
+            ).click()  # the paused run gives way to a new one
+            page.wait_for_function("document.body.innerText.includes('SUCCESS: succeeded')", timeout=60_000)
             browser.close()
-        session.breakpoint.value = "(none)"
-        session.gizmos["object"].position = (0.5, -0.05, session.gizmos["object"].position[2])
-        session.set_value("object", session.gizmos["object"].position[:2])  # what letting go of it does
-        session.reset()  # the paused run ends; the next one uses the new tau
-        session.run()
-        deadline = time.monotonic() + 60
-        while session.result is None and time.monotonic() < deadline:
-            time.sleep(0.1)
         assert session.result.status == "SUCCESS"
-        messages = [message for record in session.runner.records for message in record["feedback"].values()]
-        assert any(message.startswith("box at [0.5, -0.05,") for message in messages), (
-            "perceived where it was moved"
+        perceived = next(
+            message
+            for record in session.runner.records
+            for path, message in record["feedback"].items()
+            if path.endswith("/perceive")
         )
+        x, y = map(float, re.match(r"box at \[([-\d.]+), ([-\d.]+),", perceived).groups())
+        assert abs(x - moved[0]) < 0.005 and abs(y - moved[1]) < 0.005, "grasped where it was dragged to"
     finally:
         session.close()
+
+
+@pytest.mark.slow
+@needs_chromium
+def test_two_browsers_see_one_run_and_one_may_leave():
+    """Two pages watch one run; one closes mid-run; the run goes on undisturbed (the same ticks and statuses
+    as the same run unwatched) and the other page sees it end, showing the server's last tick."""
+    from playwright.sync_api import sync_playwright
+
+    from besman.trees.runner import statuses
+    from besman.trees.session import Session
+
+    values = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
+    unwatched, _ = tabletop_run(grasp_then_place(), values)
+    unwatched.run()
+    session = Session(grasp_then_place(), values, speed=2.0, viewer_options={"port": 0})
+    try:
+        with sync_playwright() as playwright:
+            browser = headless_chromium(playwright, CHROMIUM)
+            pages = [browser.new_context().new_page() for _ in range(2)]
+            for page in pages:
+                page.goto(session.viewer.url)
+                page.wait_for_function("document.body.innerText.includes('Behaviour tree')", timeout=30_000)
+            assert wait_until(lambda: len(session.viewer.server.get_clients()) == 2)
+            session.run()
+            for page in pages:
+                page.wait_for_function("document.body.innerText.includes('RUNNING')", timeout=30_000)
+            pages[0].context.close()  # leaves mid-run
+            assert wait_until(lambda: len(session.viewer.server.get_clients()) == 1)
+            assert session.result is None, "the run was still going when the page left"
+            pages[1].wait_for_function(
+                "document.body.innerText.includes('SUCCESS: succeeded')", timeout=60_000
+            )
+            last = session.runner.records[-1]
+            assert f"tick {last['tick']}, t = {last['time']:.2f} s" in pages[1].inner_text("body")
+            browser.close()
+        assert list(statuses(session.runner.records)) == list(statuses(unwatched.records))
+    finally:
+        session.close()
+
+
+def test_overlays_and_the_tree_panel_follow_a_template_run():
+    """Server side, no browser: a tree that instantiates a skill template and executes the instance. The
+    overlays show the instance's planned hand path (ending where the hand ends), the executed path, the
+    target frame at the hand's final pose and the template's spread (16 seeded samples, wider where the
+    template is unsure); the panel shows the blackboard's tau and a node's details."""
+    import py_trees
+
+    from besman.sim.executor import Executor
+    from besman.sim.manipulation import PickPlacePlan, plan_pick
+    from besman.sim.world import tabletop_world
+    from besman.skills.tasks import TaskBounds
+    from besman.skills.template import SkillTemplate
+    from besman.trees.leaves import ExecutePrimitive, InstantiateSkillTemplate
+    from besman.trees.runner import Runner
+
+    runner, _ = tabletop_run(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, seed=0)
+    arm, box = runner.executor.arm, runner.executor.world.objects["box"]
+    taus = np.array([[0.5, -0.12], [0.6, -0.12], [0.5, 0.0], [0.6, 0.0]])
+    approaches = [plan_pick(arm, arm.measured().copy(), box, tau, PickPlacePlan()).approach for tau in taus]
+    template = SkillTemplate(
+        "approach",
+        approaches[0],
+        taus,
+        [p.theta for p in approaches],
+        TaskBounds(("x", "y"), (0.45, -0.2), (0.65, 0.05)),
+    )
+    root = py_trees.composites.Sequence(
+        "reach",
+        memory=True,
+        children=[InstantiateSkillTemplate("instantiate", template=template), ExecutePrimitive("execute")],
+    )
+    py_trees.blackboard.Blackboard.clear()
+    py_trees.blackboard.Blackboard.set("/tau", np.array([0.55, -0.06]))
+    runner = Runner(root, Executor(tabletop_world()))
+    viewer = Viewer(runner.executor.world.model)
+    try:
+        runner.observe = Watch(viewer, speed=float("inf"))
+        assert runner.run().status == "SUCCESS"
+        overlays = viewer.overlays_for(arm)
+        handles = {handle.name: handle for kind in overlays._handles.values() for handle in kind}
+        hand = runner.executor.world.data.site(arm.site).xpos
+        np.testing.assert_allclose(handles["/overlays/target"].position, hand, atol=0.01)
+        scene = viewer.server.scene._handle_from_node_name
+        planned = scene["/overlays/planned"]._impl.props.points
+        executed = scene["/overlays/executed"]._impl.props.points
+        assert np.linalg.norm(planned[-1, 1] - hand) < 0.01 and np.linalg.norm(executed[-1, 1] - hand) < 0.02
+        spread = scene["/overlays/spread"]._impl.props.points.reshape(16, -1, 2, 3)
+        ends = spread[:, -1, 1]
+        assert 0.001 < ends.std(axis=0).max() < 0.2, "a fan of distinct paths around the instance"
+        viewer._inspect.value = "reach/instantiate"
+        assert (
+            "InstantiateSkillTemplate" in viewer._details.content
+            and "`/tau` (read)" in viewer._details.content
+        )
+        assert "/tau" in viewer._values.content and "active motion" in viewer._values.content
+    finally:
+        viewer.close()

@@ -185,6 +185,7 @@ class InstantiateSkillTemplate(RoleBehaviour):
         if pool is not None and template_name is None:
             raise InputError(f"{name}: a pool needs a template_name")
         self.template, self.pool, self.template_name = template, pool, template_name
+        self.instantiated: tuple | None = None  # (template, tau) of the last instance (for viewers)
         self.use("tau")
         self.use("primitive")
 
@@ -206,5 +207,6 @@ class InstantiateSkillTemplate(RoleBehaviour):
             self.feedback_message = f"the template rejected tau {tau.tolist()}: {error}"
             return Status.FAILURE
         self.blackboard.set("primitive", primitive, overwrite=True)
+        self.instantiated = (template, tau)
         self.feedback_message = f"instantiated {getattr(primitive, 'name', 'a primitive')}"
         return Status.SUCCESS

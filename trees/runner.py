@@ -82,7 +82,7 @@ def object_addresses(world) -> dict[str, int]:
     return {name: int(model.jnt_qposadr[model.joint(name).id]) for name in world.objects}
 
 
-def _jsonable(value: Any) -> Any:
+def jsonable(value: Any) -> Any:
     """Blackboard values as JSON: arrays as lists, primitives by name, anything else by its repr."""
     if isinstance(value, MovementPrimitive):
         return {"primitive": value.name, "space": value.space}
@@ -91,7 +91,7 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, float | int | str | bool) or value is None:
         return value if not (isinstance(value, float) and not math.isfinite(value)) else str(value)
     if isinstance(value, list | tuple):
-        return [_jsonable(item) for item in value]
+        return [jsonable(item) for item in value]
     return repr(value)
 
 
@@ -219,7 +219,7 @@ class Runner:
                 "key": item.key,
                 "activity": item.activity_type,
                 "client": item.client_name,
-                "value": _jsonable(item.current_value),
+                "value": jsonable(item.current_value),
             }
             for item in stream.data
             if item.activity_type in ("INITIALISED", "WRITE")

@@ -3,12 +3,19 @@
 A :class:`Session` holds a tree and the task values of AILA's tabletop (``object``: where the box stands,
 ``place``: where it goes). Its runs go in a background thread, driven by the viewer's controls:
 
-- **Run** starts a run (a new one after the last has ended) or resumes a paused one; **Pause** stops after the
+- **Run** starts a run (a new one after the last has ended, or when a gizmo moved since this one was set up)
+  or resumes a paused one; **Pause** stops after the
   current tick; **Step** runs one tick and pauses; **Reset** abandons the run and sets up a new one with the
   current task values; **speed** is the pace (x real time).
 - **Breakpoint**: a node chosen in the list pauses the run at the first tick that visits it (once per run).
-- Two draggable gizmos mark the object and the place target; letting go of one sets that task value (within
-  the task's bounds), and the next run uses it.
+- Two draggable gizmos mark the object and the place target (they move within the task's bounds); letting go
+  of one sets that task value, and the next run uses it (a tree that instantiates templates instantiates them
+  for the new tau: it reads the task values when it runs).
+- Overlays (:mod:`besman.sim.overlays`): the place target as a ring, the motions' planned and executed hand
+  paths, target frames, the objects' poses, a template's spread.
+
+``besman run FILE --view`` and ``besman demo --view`` start the first run themselves (:meth:`Session.start`,
+with the run's log if one is asked for) and keep serving the session after it.
 
 The runner's observer (:class:`~besman.trees.watching.Watch`) does the waiting: between two ticks it blocks
 while the session is paused, so the simulation stands exactly where the tree stopped.
@@ -25,24 +32,30 @@ from besman.sim.pick_place import PICK_PLACE_BOUNDS
 from besman.sim.viewer import Viewer
 from besman.sim.world import SHELF, TABLE
 from besman.skills.errors import InputError
-from besman.trees.runner import Runner
+from besman.trees.runner import Runner, RunResult
 from besman.trees.tabletop import TreeSource, tabletop_run
 from besman.trees.watching import Watch
 
 NO_BREAKPOINT = "(none)"
 
 
-class _Abandoned(Exception):
-    """Raised inside a paused run's thread to end it (Reset)."""
+class _Abandoned(KeyboardInterrupt):
+    """Raised inside a paused run's thread to end it (Reset); its log ends INTERRUPTED, as after Ctrl-C."""
 
 
 class Session:
     """A tree on AILA's tabletop, run from the browser (see the module documentation)."""
 
     def __init__(
-        self, tree: TreeSource, values: dict[str, tuple[float, float]], viewer_options: dict | None = None
+        self,
+        tree: TreeSource,
+        values: dict[str, tuple[float, float]] | None = None,
+        *,
+        seed: int | None = None,
+        speed: float = 1.0,
+        viewer_options: dict | None = None,
     ) -> None:
-        self.tree, self.values = tree, {name: tuple(map(float, value)) for name, value in values.items()}
+        self.tree, self.seed = tree, seed
         self._lock = threading.Condition()
         self._running = False  # the run may tick
         self._steps = 0  # ticks left before pausing (-1: no limit)
@@ -50,14 +63,21 @@ class Session:
         self._thread: threading.Thread | None = None
         self._watch: Watch | None = None  # made by the first tick of each run
         self._breakpoint_hit = False
-        self.result = None
-        self.runner = self._new_runner()
+        self._log = None  # the log of the next run (the first run's, from the command line)
+        self.result: RunResult | None = None
+        self.error: Exception | None = None  # what broke the last run, if anything did
+        runner, settings = tabletop_run(tree, values, seed=seed)  # values not given are drawn with the seed
+        self.values = {name: tuple(value) for name, value in settings.items()}
+        self.runner = self._new_runner(runner)
         self.viewer = Viewer(self.runner.executor.world.model, **(viewer_options or {}))
+        self.overlays = self.viewer.overlays_for(self.runner.executor.arm)
         gui = self.viewer.server.gui
         with gui.add_folder("Run"):
             self.run_button, self.pause_button = gui.add_button("Run"), gui.add_button("Pause")
             self.step_button, self.reset_button = gui.add_button("Step"), gui.add_button("Reset")
-            self.speed = gui.add_slider("speed (x real time)", min=0.1, max=10.0, step=0.1, initial_value=1.0)
+            self.speed = gui.add_slider(
+                "speed (x real time)", min=0.1, max=max(10.0, speed), step=0.1, initial_value=speed
+            )
             self.breakpoint = gui.add_dropdown(
                 "break at", [NO_BREAKPOINT, *self.runner.paths.values()], initial_value=NO_BREAKPOINT
             )
@@ -79,6 +99,18 @@ class Session:
         """Starts a run (a new one after the last ended) or resumes the paused one."""
         self._go(-1)
 
+    def start(self, log=None) -> RunResult:
+        """Runs the set-up run to its end, writing ``log`` if given, and returns its result (the browser's
+        controls work meanwhile: a pause holds this call)."""
+        self._log = log
+        self.run()
+        with self._lock:
+            thread = self._thread
+        thread.join()
+        if self.error is not None:
+            raise self.error
+        return self.result
+
     def step(self) -> None:
         """One tick, then pause."""
         self._go(1)
@@ -97,8 +129,12 @@ class Session:
             self._thread.join()
         with self._lock:
             self._abandon, self._thread, self.result = False, None, None
-        self.runner = self._new_runner()
+        self.runner = self._new_runner(tabletop_run(self.tree, self.values, seed=self.seed)[0])
         self._show_initial()
+
+    @property
+    def url(self) -> str:
+        return self.viewer.url
 
     @property
     def paused(self) -> bool:
@@ -113,6 +149,9 @@ class Session:
         tau[columns] = (x, y)
         PICK_PLACE_BOUNDS.check(tau)  # a value outside the task's box is refused with its name
         self.values[name] = (x, y)
+        self.gizmos[name].position = (x, y, self.gizmos[name].position[2])
+        if name == "place":
+            self.overlays.show_place((x, y, SHELF.height))
         self.state.content = f"{name} set to ({x:.3f}, {y:.3f}); Reset or Run uses it"
 
     def close(self) -> None:
@@ -121,8 +160,7 @@ class Session:
 
     # -- internals -----------------------------------------------------------------------------------------
 
-    def _new_runner(self) -> Runner:
-        runner, _ = tabletop_run(self.tree, self.values)
+    def _new_runner(self, runner: Runner) -> Runner:
         self._watch, self._breakpoint_hit, self._made_with = None, False, dict(self.values)
         runner.observe = self._observe
         return runner
@@ -130,11 +168,8 @@ class Session:
     def _go(self, steps: int) -> None:
         with self._lock:
             finished = self._thread is not None and not self._thread.is_alive()
-        if finished:
+        if finished or self._made_with != self.values:  # a new run after the last, or for moved task values
             self.reset()
-        elif self._thread is None and self._made_with != self.values:  # a gizmo moved since the set-up
-            self.runner = self._new_runner()
-            self._show_initial()
         with self._lock:
             self._steps, self._running = steps, True
             if self._thread is None:
@@ -143,11 +178,15 @@ class Session:
             self._lock.notify_all()
 
     def _run(self) -> None:
+        log, self._log, self.error = self._log, None, None
         try:
-            self.result = self.runner.run()
+            self.result = self.runner.run(log=log)
             self.state.content = f"{self.result.status}: {self.result.message}"
         except _Abandoned:
-            pass
+            self.runner.root.stop(Status.INVALID)  # a tree given as an object runs again from its start
+        except Exception as error:  # shown in the page, and raised again by start()
+            self.error = error
+            self.state.content = f"error: {error}"
 
     def _observe(self, runner: Runner, record: dict) -> None:
         if self._watch is None:
@@ -172,21 +211,29 @@ class Session:
                 raise _Abandoned
 
     def _show_initial(self) -> None:
-        self.viewer.show(self.runner.executor.world.data, force=True)
+        data = self.runner.executor.world.data
+        self.viewer.show(data, force=True)
+        self.overlays.update(data)
         for name, handle in self.gizmos.items():
             handle.position = (*self.values[name], handle.position[2])
+        self.overlays.show_place((*self.values["place"], SHELF.height))
 
     def _gizmo(self, name: str, height: float):
+        """A gizmo that moves in x and y within the task's bounds for ``name``; letting go sets the value."""
         x, y = self.values[name]
+        columns = {"object": slice(0, 2), "place": slice(2, 4)}[name]
+        low, high = PICK_PLACE_BOUNDS.low[columns], PICK_PLACE_BOUNDS.high[columns]
         handle = self.viewer.server.scene.add_transform_controls(
             f"/task/{name}",
             scale=0.15,
             position=(x, y, height),
             disable_rotations=True,
             active_axes=(True, True, False),
+            # viser's limits are offsets from where the gizmo was made
+            translation_limits=((low[0] - x, high[0] - x), (low[1] - y, high[1] - y), (0.0, 0.0)),
         )
 
-        @handle.on_update
+        @handle.on_drag_end
         def _(_) -> None:
             try:
                 self.set_value(name, handle.position[:2])

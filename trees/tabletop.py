@@ -10,7 +10,6 @@ logged run again and compare its statuses.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +21,7 @@ from besman.sim.world import TABLE, tabletop_world
 from besman.skills.errors import InputError
 from besman.trees.blackboard import set_task_values, task_keys_read
 from besman.trees.files import describe, load_tree, loads_tree
-from besman.trees.runner import Runner, read_log, statuses
+from besman.trees.runner import Runner, RunResult, read_log, statuses
 
 TreeSource = str | Path | py_trees.behaviour.Behaviour
 
@@ -82,16 +81,16 @@ def run_on_tabletop(
     seed: int | None = None,
     log: str | Path | None = None,
     max_sim_time: float = 120.0,
-    watch: Callable[[Runner], Callable[[Runner, dict], None]] | None = None,
 ) -> dict:
-    """Runs a tree on AILA's tabletop (:func:`tabletop_run`) and returns the summary: status, placement error
-    measured in the simulation (None for a tree that does not read the place target), the box's position,
-    simulated and wall time, ticks, failed node and message. ``watch`` makes the runner's observer (e.g. a
-    browser viewer, :class:`~besman.trees.watching.Watch`) once the runner and its world exist."""
+    """Runs a tree on AILA's tabletop (:func:`tabletop_run`) and returns its :func:`summary`."""
     runner, settings = tabletop_run(tree, values, seed=seed, max_sim_time=max_sim_time)
-    if watch is not None:
-        runner.observe = watch(runner)
-    result = runner.run(log=log)
+    return summary(runner, settings, runner.run(log=log))
+
+
+def summary(runner: Runner, settings: dict[str, list[float]], result: RunResult) -> dict:
+    """A tabletop run's outcome: status, placement error measured in the simulation (None for a tree that
+    does not read the place target), the box's position, simulated and wall time, ticks, failed node and
+    message."""
     box = runner.executor.world.object_pose("box").position
     places = "place" in task_keys_read(runner.root)  # a tree that never reads the target places nothing
     return {

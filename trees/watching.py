@@ -8,42 +8,107 @@
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from pathlib import Path
 
 import mujoco
+import py_trees
 from py_trees.common import Status
 
 from besman.sim.executor import Executor
+from besman.sim.overlays import template_spread
 from besman.sim.viewer import Viewer
 from besman.sim.world import tabletop_world
 from besman.skills.errors import InputError
-from besman.trees.runner import Runner, object_addresses, read_log
+from besman.trees.base import RoleBehaviour
+from besman.trees.leaves import InstantiateSkillTemplate
+from besman.trees.runner import Runner, jsonable, object_addresses, read_log
+
+
+def shown(value) -> str:
+    """A blackboard value as the tree panel shows it: compact JSON."""
+    return json.dumps(jsonable(value), separators=(",", ":"))
+
+
+def describe_node(node: py_trees.behaviour.Behaviour, status: str, feedback: str) -> str:
+    """A node's details (markdown): its type and what it is for, status, parameters and blackboard keys."""
+    kind = type(node)
+    lines = [f"**{node.name}** (`{kind.__name__}`): {(kind.__doc__ or '').strip().splitlines()[0]}"]
+    lines.append(f"status {status}{': ' + feedback if feedback else ''}")
+    parameters = {
+        name: getattr(node, name) for name in getattr(kind, "parameters", {}) if hasattr(node, name)
+    }
+    if parameters:
+        lines.append(
+            "parameters: " + ", ".join(f"{name} = {shown(value)[:60]}" for name, value in parameters.items())
+        )
+    if isinstance(node, RoleBehaviour):
+        keys = node.role_keys(node.namespace, node.remap)
+        lines.append(
+            "blackboard: "
+            + ", ".join(f"{role} `{key}` ({node.roles[role].name.lower()})" for role, key in keys.items())
+        )
+    return "  \n".join(lines)
 
 
 class Watch:
-    """``Runner(..., observe=Watch(viewer))``: shows every tick and paces the run at ``speed`` x real time."""
+    """``Runner(..., observe=Watch(viewer))``: shows every tick and paces the run at ``speed`` x real time.
+
+    A frame (when one is due, and always the run's last tick) poses the scene and the overlays
+    (:mod:`besman.sim.overlays`: the motion's planned and executed hand paths, target frames, objects) and
+    writes the tree panel with the blackboard's values and the active motion. A template instantiated in a
+    tick (an :class:`~besman.trees.leaves.InstantiateSkillTemplate` that succeeded) shows its spread.
+    """
 
     def __init__(self, viewer: Viewer, speed: float = 1.0) -> None:
         self.viewer, self.speed = viewer, speed
         self._start: tuple[float, float] | None = None  # (sim time, wall time) of the first tick
+        self._runner: Runner | None = None
+        self._instances: dict = {}  # per instantiating leaf: the (template, tau) last shown
 
     def restart_pacing(self) -> None:
         """Paces from the next tick on (after a pause, the run does not race to catch up)."""
         self._start = None
 
     def __call__(self, runner: Runner, record: dict) -> None:
-        data = runner.executor.world.data
+        executor, viewer = runner.executor, self.viewer
+        data = executor.world.data
+        overlays = viewer.overlays_for(executor.arm)
+        if self._runner is not runner:
+            self._runner, nodes = runner, {path: node for node, path in runner.nodes}
+            viewer.set_nodes(
+                list(nodes),
+                lambda path: describe_node(
+                    nodes[path], nodes[path].status.value, nodes[path].feedback_message
+                ),
+            )
         if self._start is None:
             self._start = (data.time, time.perf_counter())
-        # A frame when one is due, and always the run's last tick; the tree panel with every frame (every tick
-        # at real-time pace; a faster run's ticks are all in its log).
-        if self.viewer.show(data, force=runner.root.status is not Status.RUNNING):
-            self.viewer.show_tree(record, list(runner.paths.values()))
+        for node, _ in runner.nodes:
+            if (
+                isinstance(node, InstantiateSkillTemplate)
+                and self._instances.get(node.id) is not node.instantiated
+            ):
+                self._instances[node.id] = node.instantiated
+                template, tau = node.instantiated
+                overlays.show_spread(template_spread(executor.arm, template, tau, executor.stream.state()))
+        overlays.follow(executor.motion)
+        if viewer.show(data, force=runner.root.status is not Status.RUNNING):
+            overlays.update(data)
+            viewer.show_tree(record, list(runner.paths.values()), self._values(executor))
         ahead = (data.time - self._start[0]) / self.speed - (time.perf_counter() - self._start[1])
         if ahead > 0:
             time.sleep(ahead)
+
+    @staticmethod
+    def _values(executor) -> dict[str, str]:
+        values = {key: shown(value) for key, value in sorted(py_trees.blackboard.Blackboard.storage.items())}
+        motion = executor.motion
+        if motion is not None:
+            values["active motion"] = f"{motion.name} ({motion.status.value})"
+        return values
 
 
 class Replay:
@@ -63,11 +128,13 @@ class Replay:
         self._arm = executor.arm.qpos_indices
         self._fingers = executor.hand.gripper.qpos_indices
         self._objects = object_addresses(self.world)
+        self._tick = 0
         self.viewer = Viewer(self.world.model, **(viewer_options or {}))
         gui = self.viewer.server.gui
         with gui.add_folder("Replay"):
             self.slider = gui.add_slider("tick", min=0, max=len(self.records) - 1, step=1, initial_value=0)
             self.play = gui.add_checkbox("play", initial_value=False)
+        self.viewer.set_nodes(self.nodes, self._describe)
         self.slider.on_update(lambda _: self.show(int(self.slider.value)))
         self._closed = threading.Event()
         self._player = threading.Thread(target=self._play, daemon=True)
@@ -86,7 +153,24 @@ class Replay:
                 qpos[self._objects[name] : self._objects[name] + 7] = pose
         mujoco.mj_kinematics(self.world.model, self.world.data)
         self.viewer.show(self.world.data, force=True)
-        self.viewer.show_tree(record, self.nodes)
+        values = {}  # the blackboard as it stood: every key's last write up to this tick
+        for earlier in self.records[: tick + 1]:
+            values.update((change["key"], json.dumps(change["value"])) for change in earlier["blackboard"])
+        self._tick = tick
+        self.viewer.show_tree(record, self.nodes, dict(sorted(values.items())))
+
+    def _describe(self, path: str) -> str:
+        """A node's details in the log: its status and feedback at the shown tick, and when it was visited."""
+        record = self.records[self._tick]
+        visited = [r["tick"] for r in self.records if path in r["statuses"]]
+        status, feedback = record["statuses"].get(path, "INVALID"), record["feedback"].get(path, "")
+        lines = [
+            f"**{path.rsplit('/', 1)[-1]}** (`{path}`)",
+            f"status {status}{': ' + feedback if feedback else ''}",
+        ]
+        if visited:
+            lines.append(f"visited in {len(visited)} ticks, {visited[0]} to {visited[-1]}")
+        return "  \n".join(lines)
 
     @property
     def url(self) -> str:
