@@ -212,15 +212,44 @@ def _serve(viewers: list, code: int) -> int:
 
 
 def _view(args: argparse.Namespace) -> int:
+    options = {"host": args.host, "port": args.port}
+    if args.throw:
+        return _view_throw(args, options)
     from besman.trees.watching import Replay
 
-    replay = Replay(args.replay, {"host": args.host, "port": args.port})
+    replay = Replay(args.replay, options)
     print(
         f"replay of {args.replay} ({len(replay.records)} ticks): {replay.viewer.url}",
         file=sys.stderr,
         flush=True,
     )
     return _serve([replay], 0)
+
+
+def _view_throw(args: argparse.Namespace, options: dict) -> int:
+    from besman.sim.throwing_view import ThrowingView
+    from besman.skills.pool import SkillTemplatePool
+
+    pool = SkillTemplatePool(args.throw)
+    if args.template not in pool:
+        raise InputError(
+            f"--throw {args.throw}: no template {args.template!r} (it has: {', '.join(pool) or 'none'})"
+        )
+    target = None
+    if args.target is not None:
+        try:
+            target = [float(v) for v in args.target.split(",")]
+        except ValueError:
+            raise InputError(f"--target {args.target!r}: expected two numbers, X,Y") from None
+    view = ThrowingView(pool[args.template], target, options)
+    print(
+        f"throwing template {args.template!r}: {view.url} (drag the target to throw again)",
+        file=sys.stderr,
+        flush=True,
+    )
+    view.throw()
+    print(view.status.content)
+    return _serve([view], 0)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -503,10 +532,19 @@ def build_parser() -> argparse.ArgumentParser:
     _view_options(demo)
     demo.set_defaults(handler=_demo)
 
-    view = commands.add_parser("view", help="replay a run log in the browser (scene and tree on a timeline)")
-    view.add_argument(
-        "--replay", required=True, metavar="LOG", help="a run's JSON-lines log (besman run --log)"
+    view = commands.add_parser(
+        "view",
+        help="in the browser: a run log replayed (scene and tree on a timeline), or a throwing template",
     )
+    shown = view.add_mutually_exclusive_group(required=True)
+    shown.add_argument("--replay", metavar="LOG", help="a run's JSON-lines log (besman run --log)")
+    shown.add_argument(
+        "--throw",
+        metavar="POOL",
+        help="a pool with a throwing template: its spread at the target and the throw of its mean",
+    )
+    view.add_argument("--template", default="throw", help="the throwing template's name (default: throw)")
+    view.add_argument("--target", help="X,Y on the floor (default: the middle of the template's task box)")
     view.add_argument(
         "--host", default="127.0.0.1", help="the viewer's address (default 127.0.0.1: this machine)"
     )

@@ -40,6 +40,7 @@ from besman.learning.policy_search import WarmStart, make_optimizer, policy_sear
 from besman.sim.throwing import ThrowingConfig, ThrowingTask
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
+from besman.skills.pool import SkillTemplatePool
 from besman.skills.storage import npz_bytes, read_json, read_npz, write_atomically
 from besman.skills.template import SkillTemplate
 
@@ -244,7 +245,8 @@ class Experiment:
     # -- the whole run -------------------------------------------------------------------------------------
 
     def run(self) -> dict:
-        """Runs (or resumes) every stage and writes results.json, fig5_top.png and fig5_bottom.png."""
+        """Runs (or resumes) every stage and writes results.json, fig5_top.png, fig5_bottom.png and a pool
+        (``pool/``) with the first seed's template of all K_max training tasks."""
         config = self.config
         seeds = range(config.seeds)
         no_learning = self.no_learning()
@@ -274,6 +276,8 @@ class Experiment:
         from besman.learning.throwing_plots import plot_results  # matplotlib only when plotting
 
         plot_results(results, self.directory)
+        # The first seed's template of all K_max training tasks, for use: besman view --throw DIR/pool
+        SkillTemplatePool(self.directory / "pool").add(self.template(0, max(config.ks)), overwrite=True)
         return results
 
 

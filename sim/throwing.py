@@ -326,6 +326,21 @@ class ThrowingTask:
         release_times = [None if step < 0 else float((step + 1) * self.timestep) for step in release_step]
         return landings, release_times, failures, violations
 
+    def simulate(self, theta) -> tuple[np.ndarray | None, ThrowDetail]:
+        """One throw, step by step: the joint positions ``qpos`` (n_steps, nq) of the whole model (arm and
+        ball) and the throw's detail; None instead of the positions for a throw that fails before
+        simulation."""
+        theta = finite_array("theta", theta, ndim=1)
+        controls, failures, release_step, _ = self.controls(theta[None])
+        if failures[0] is not None:
+            return None, ThrowDetail(None, None, failures[0])
+        states, ball, touches = self._rollout(controls)
+        ((failure, landing),) = self._landings(states, ball, touches, release_step)
+        # The full physics state is time, then qpos (mj_getState's documented order).
+        qpos = states[0, :, 1 : 1 + self.model.nq].copy()
+        release = float((release_step[0] + 1) * self.timestep)
+        return qpos, ThrowDetail(None if landing is None else tuple(map(float, landing)), release, failure)
+
     def _rollout(self, controls: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """States (N, T, nstate), ball positions (N, T, 3) and ball-robot contact counts (N, T) per step."""
         threads = min(len(controls), os.cpu_count() or 1)

@@ -374,3 +374,36 @@ def test_overlays_and_the_tree_panel_follow_a_template_run():
         assert "/tau" in viewer._values.content and "active motion" in viewer._values.content
     finally:
         viewer.close()
+
+
+def test_a_throwing_template_shows_its_spread_and_where_the_ball_lands():
+    """``besman view --throw``'s view of the committed pool: the landing it reports is the task's own
+    evaluation of the template's mean, the drawn flight ends there, the spread holds 16 distinct hand paths
+    ending where the mean's does on average, and a target outside the task box is refused by name."""
+    from pathlib import Path
+
+    from besman.sim.throwing_view import ThrowingView
+    from besman.skills.errors import InputError
+    from besman.skills.pool import SkillTemplatePool
+
+    template = SkillTemplatePool(Path(__file__).parents[1] / "docs/results/throwing/pool")["throw"]
+    target = (-4.0, -2.0)
+    view = ThrowingView(template, target, {"port": 0})
+    try:
+        view.throw(speed=50.0)
+        (detail,) = view.task.evaluate(
+            template.predict(np.array(target))[0][None], np.array([target])
+        ).details
+        np.testing.assert_allclose(view.landing, detail.landing, atol=1e-9)
+        scene = view.viewer.server.scene._handle_from_node_name
+        flight = scene["/throw/flight"]._impl.props.points
+        radius = view.task.ball_radius
+        assert np.linalg.norm(flight[-1, 1, :2] - view.landing) < 0.3 and flight[-1, 1, 2] < 3 * radius
+        spread = scene["/throw/spread"]._impl.props.points.reshape(16, -1, 2, 3)[:, -1, 1]
+        planned = scene["/throw/planned"]._impl.props.points[-1, 1]
+        assert spread.std(axis=0).max() > 1e-3 and np.linalg.norm(spread.mean(axis=0) - planned) < 0.2
+        assert f"{np.linalg.norm(np.subtract(view.landing, target)):.2f} m away" in view.status.content
+        with pytest.raises(InputError, match="outside the task's bounds"):
+            view.throw((0.0, 0.0))
+    finally:
+        view.close()

@@ -233,8 +233,10 @@ class Session:
             translation_limits=((low[0] - x, high[0] - x), (low[1] - y, high[1] - y), (0.0, 0.0)),
         )
 
-        @handle.on_drag_end
-        def _(_) -> None:
+        @handle.on_update
+        def _(event) -> None:
+            if getattr(event, "phase", "end") != "end":  # dragging; the value is set when it is let go
+                return
             try:
                 self.set_value(name, handle.position[:2])
             except InputError as error:
