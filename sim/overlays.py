@@ -16,6 +16,8 @@ frame is MuJoCo's world frame: z up).
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import viser
 
@@ -29,6 +31,7 @@ EXECUTED = (255, 127, 14)  # orange
 SPREAD = (120, 120, 120)  # grey
 PLACE = (44, 160, 44)  # green
 EXECUTED_STEP = 0.01  # m the hand moves before the executed path grows by a point
+EXECUTED_PERIOD = 0.2  # s of wall time between two drawings of the executed path
 PATH_SAMPLE_PERIOD = 0.02  # s between the drawn points of a planned path
 SPREAD_SAMPLES = 16
 
@@ -61,6 +64,7 @@ class Overlays:
         self.server, self.arm = server, arm
         self._motion: Motion | None = None
         self._executed: list[np.ndarray] = []
+        self._drawn = -np.inf  # wall time the executed path was last drawn
         self._objects: dict = {}  # per object, its frame
         self._handles: dict[str, list] = {
             "planned": [],
@@ -83,8 +87,9 @@ class Overlays:
         for kind, toggle in self.toggles.items():
             toggle.on_update(lambda _, kind=kind: self._set_visible(kind))
 
-    def update(self, data) -> None:
-        """Follows the objects and the hand (called with every frame of the scene)."""
+    def update(self, data, *, final: bool = False) -> None:
+        """Follows the objects and the hand (called with every frame of the scene; ``final`` for the run's
+        last, which draws the executed path whole)."""
         world = self.arm.world
         for name in world.objects:
             pose = world.object_pose(name)
@@ -102,16 +107,20 @@ class Overlays:
             else:  # moved, not made again: a new scene node costs every browser far more than a pose
                 frame.position, frame.wxyz = pose.position, pose.quaternion
         hand = data.site(self.arm.site).xpos.copy()
-        if len(self._executed) == 0 or np.linalg.norm(hand - self._executed[-1]) > EXECUTED_STEP:
+        if len(self._executed) == 0 or final or np.linalg.norm(hand - self._executed[-1]) > EXECUTED_STEP:
             self._executed.append(hand)
-            if len(self._executed) > 1:
+            now = time.perf_counter()
+            # A new line every frame would make every browser rebuild it 40 times a second.
+            if len(self._executed) > 1 and (final or now - self._drawn >= EXECUTED_PERIOD):
+                self._drawn = now
                 self._put(
                     "executed",
                     "/overlays/executed",
                     self.server.scene.add_line_segments,
                     points=polyline(self._executed),
                     colors=EXECUTED,
-                    thickness=0.006,
+                    thickness=3.0,
+                    thickness_units="screen",
                 )
 
     def follow(self, motion: Motion | None) -> None:
@@ -132,7 +141,8 @@ class Overlays:
             self.server.scene.add_line_segments,
             points=polyline(planned),
             colors=PLANNED,
-            thickness=0.006,
+            thickness=3.0,
+            thickness_units="screen",
         )
         self._put(
             "targets",
@@ -161,7 +171,8 @@ class Overlays:
             self.server.scene.add_line_segments,
             points=polyline(ring + np.asarray(position, dtype=float)),
             colors=PLACE,
-            thickness=0.008,
+            thickness=3.0,
+            thickness_units="screen",
         )
 
     def show_spread(self, paths: list[np.ndarray]) -> None:
@@ -173,7 +184,8 @@ class Overlays:
             self.server.scene.add_line_segments,
             points=segments,
             colors=SPREAD,
-            thickness=0.003,
+            thickness=1.5,
+            thickness_units="screen",
         )
 
     def _put(self, kind: str, name: str, add, **arguments):

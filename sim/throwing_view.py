@@ -54,9 +54,7 @@ class ThrowingView:
         target = (np.asarray(box.low) + np.asarray(box.high)) / 2 if target is None else target
         self.target = tuple(box.check(target)[0])  # outside the box: named and refused
         self.arm = Arm(self.task.world, groups=("arm",))
-        self.viewer = Viewer(self.task.model, **(viewer_options or {}))
-        self.viewer.server.initial_camera.position = (3.0, 4.0, 3.5)  # beside the robot, the floor ahead
-        self.viewer.server.initial_camera.look_at = (-2.0, -1.0, 0.5)
+        self.viewer = Viewer(self.task.model, **{"camera_distance": 10.0, **(viewer_options or {})})
         scene, gui = self.viewer.server.scene, self.viewer.server.gui
         with gui.add_folder("Throw"):
             self.status = gui.add_markdown("")

@@ -4,7 +4,7 @@ A :class:`Viewer` serves a web page (viser; 127.0.0.1 unless told otherwise, a f
 world's MuJoCo model is mirrored by mjviser (geoms converted once, moving bodies as batched meshes, poses
 pushed inside one ``server.atomic()`` per frame), with contacts and frames as toggles in its scene panel.
 :meth:`Viewer.show` poses the scene from the simulation; during a run it is called after every tick and
-sends a frame whenever 1/60 s of wall time has passed since the last one (at least 30 frames per second of
+sends a frame whenever 1/40 s of wall time has passed since the last one (at least 30 frames per second of
 wall time, whatever the run's real-time factor) and always for the run's last tick. :meth:`Viewer.show_tree`
 writes the tree panel: every node of the running tree with its status colour and feedback, indented by
 depth, the running path, the values that matter (the blackboard's, the active motion) and the details of a
@@ -26,7 +26,7 @@ from mjviser import ViserMujocoScene
 from besman.sim.arm import Arm
 from besman.sim.overlays import Overlays
 
-FRAME_PERIOD = 1.0 / 60.0  # s of wall time between frames during a run
+FRAME_PERIOD = 1.0 / 40.0  # s of wall time between frames during a run: >= 30 per second with margin
 # What makes Debian's headless Chromium draw viser's WebGL scene whole, in software (tests, benchmarks and
 # screenshots drive it through Playwright with these).
 HEADLESS_CHROMIUM_FLAGS = (
@@ -53,13 +53,14 @@ def headless_chromium(playwright, executable: str = "/usr/bin/chromium"):
 class Viewer:
     """A viser server showing ``model`` (posed by :meth:`show`) and a tree panel."""
 
-    def __init__(self, model: mujoco.MjModel, *, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(
+        self, model: mujoco.MjModel, *, host: str = "127.0.0.1", port: int = 0, camera_distance: float = 4.0
+    ) -> None:
         with contextlib.redirect_stdout(sys.stderr):  # viser's banner; stdout is for the command's output
             self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self.scene = ViserMujocoScene(self.server, model, num_envs=1)
-        self.scene.create_scene_gui()
-        self.server.initial_camera.position = (2.2, -1.6, 1.9)  # in front of AILA, looking at the table
-        self.server.initial_camera.look_at = (0.4, -0.2, 0.9)
+        # mjviser places every new browser's camera: from the front right, ``camera_distance`` m away
+        self.scene.create_scene_gui(camera_distance=camera_distance)
         with self.server.gui.add_folder("Behaviour tree"):
             self._time = self.server.gui.add_markdown("no run yet")
             self._running = self.server.gui.add_markdown("")

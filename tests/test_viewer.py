@@ -3,6 +3,7 @@
 import io
 import shutil
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -94,7 +95,9 @@ def test_a_running_grasp_then_place_is_seen_in_the_browser_with_its_tree():
     def darkest_near(x, y):
         return shade[int(y) - 4 : int(y) + 5, int(x) - 4 : int(x) + 5].min()
 
-    sky = project(posed[1][model.body_rootid == root] + [0.0, 0.0, 1.5], camera)
+    above = posed[1][model.body_rootid == root].copy()
+    above[:, 2] = above[:, 2].max() + 0.3  # just above the head: in view of the close camera
+    sky = project(above, camera)
     sky = sky[(sky[:, 0] > 5) & (sky[:, 0] < WIDTH - 360) & (sky[:, 1] > 5) & (sky[:, 1] < HEIGHT - 5)]
     background = np.median([shade[int(y), int(x)] for x, y in sky])
     assert len(sky) >= 5 and background > 0.8, "the space above the robot is empty and light"
@@ -103,8 +106,9 @@ def test_a_running_grasp_then_place_is_seen_in_the_browser_with_its_tree():
 
 
 @pytest.mark.slow
-def test_demo_view_serves_on_localhost_until_interrupted():
-    """``besman demo --view`` prints the URL, runs, keeps serving the page, and ends cleanly on Ctrl-C."""
+def test_demo_view_serves_on_localhost_until_interrupted(tmp_path):
+    """``besman demo --view`` prints the URL, runs (writing its log), keeps serving the page, and ends cleanly
+    on Ctrl-C."""
     import re
     import signal
     import subprocess
@@ -112,8 +116,11 @@ def test_demo_view_serves_on_localhost_until_interrupted():
     import time
     import urllib.request
 
+    from besman.trees.runner import read_log
+
+    log = tmp_path / "run.jsonl"
     process = subprocess.Popen(
-        [sys.executable, "-m", "besman", "demo", "--view", "--port", "0", "--speed", "20"],
+        [sys.executable, "-m", "besman", "demo", "--view", "--port", "0", "--speed", "20", "--log", str(log)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -130,6 +137,7 @@ def test_demo_view_serves_on_localhost_until_interrupted():
         process.send_signal(signal.SIGINT)
         out, _ = process.communicate(timeout=30)
     assert process.returncode == 0 and out.splitlines()[1].startswith("SUCCESS: placement error")
+    assert read_log(log)[2]["status"] == "SUCCESS"
 
 
 def test_the_viewer_binds_this_machine_by_default():
@@ -181,6 +189,21 @@ def test_a_logged_run_replays_scene_and_tree_on_one_timeline(tmp_path):
         assert int(replay.slider.value) != middle
     finally:
         replay.close()
+
+
+def test_view_throw_refuses_a_missing_template_and_a_bad_target_before_serving(tmp_path, capsys):
+    from tests.helpers import run_cli
+
+    pool = str(Path(__file__).parents[1] / "docs/results/throwing/pool")
+    code, _, err = run_cli(capsys, "view", "--throw", str(tmp_path), "--port", "0")
+    assert code == 2 and "no template 'throw' (it has: none)" in err
+    code, _, err = run_cli(capsys, "view", "--throw", pool, "--target", "a,b", "--port", "0")
+    assert code == 2 and "--target 'a,b': expected two numbers" in err
+    code, _, err = run_cli(capsys, "view", "--throw", pool, "--target", "0,0", "--port", "0")
+    assert code == 2 and "x = 0 is outside the task's bounds [-7, -1]" in err
+    with pytest.raises(SystemExit) as exit:
+        run_cli(capsys, "view", "--replay", "run.jsonl", "--throw", pool)
+    assert exit.value.code == 2 and "not allowed with argument" in capsys.readouterr().err
 
 
 def test_a_replay_of_a_missing_or_foreign_log_is_one_clear_error(tmp_path, capsys):

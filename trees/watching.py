@@ -95,8 +95,9 @@ class Watch:
                 template, tau = node.instantiated
                 overlays.show_spread(template_spread(executor.arm, template, tau, executor.stream.state()))
         overlays.follow(executor.motion)
-        if viewer.show(data, force=runner.root.status is not Status.RUNNING):
-            overlays.update(data)
+        final = runner.root.status is not Status.RUNNING
+        if viewer.show(data, force=final):
+            overlays.update(data, final=final)
             viewer.show_tree(record, list(runner.paths.values()), self._values(executor))
         ahead = (data.time - self._start[0]) / self.speed - (time.perf_counter() - self._start[1])
         if ahead > 0:
