@@ -1,11 +1,11 @@
 """What the browser viewer costs: one scene update for AILA, and grasp-then-place with and without a viewer.
 
-    python benchmarks/viewer.py [--json] [--runs 3]
+    python benchmarks/viewer.py [--json] [--runs 7]
 
 In one run: the server-side time of one update of the mirrored AILA scene (mjviser's ``update_from_mjdata``
 inside viser's ``atomic()``), and the real-time factor of whole grasp-then-place runs without a viewer and
 with one that a headless Chromium (Debian's, through Playwright) is connected to, the run unpaced
-(``Watch(speed=inf)``: frames at most 40 per second of wall time). Target: the viewer's own work (the
+(``Watch(speed=inf)``: about 32 frames per second of wall time, counted). Target: the viewer's own work (the
 observer: scene updates and tree panel) costs under 20 % of the run's wall time. Reported beside it: the
 whole slowdown, which on a 2-core machine includes the browser's software WebGL competing for the cores.
 """
@@ -40,12 +40,24 @@ def timed(observe, seconds: list):
     return call
 
 
+def counted(show, frames: list):
+    """A viewer's ``show`` that adds the wall time of each frame it sent to ``frames``."""
+
+    def call(data, *, force=False):
+        sent = show(data, force=force)
+        if sent:
+            frames.append(time.perf_counter())
+        return sent
+
+    return call
+
+
 def measure(runs: int) -> dict:
     from playwright.sync_api import sync_playwright
 
     runner, _ = tabletop_run(grasp_then_place(), SETTINGS, seed=0)
     viewer = Viewer(runner.executor.world.model)
-    plain, viewed, updates, shares, observing = [], [], [], [], []
+    plain, viewed, updates, shares, observing, rates, frames = [], [], [], [], [], [], []
     with sync_playwright() as playwright:
         browser = headless_chromium(playwright)
         page = browser.new_page(viewport={"width": 1280, "height": 800})
@@ -59,6 +71,7 @@ def measure(runs: int) -> dict:
             start = time.perf_counter()
             viewer.show(data, force=True)
             updates.append(time.perf_counter() - start)
+        viewer.show = counted(viewer.show, frames)
         for seed in range(runs):  # alternate, so that machine noise hits both alike
             for watched, factors in ((False, plain), (True, viewed)):
                 runner, _ = tabletop_run(grasp_then_place(), SETTINGS, seed=seed)
@@ -68,7 +81,9 @@ def measure(runs: int) -> dict:
                 factors.append(result.sim_time_s / result.wall_time_s)
                 if watched:
                     shares.append(sum(observing) / result.wall_time_s)
+                    rates.append((len(frames) - 1) / (frames[-1] - frames[0]))
                     observing.clear()
+                    frames.clear()
         browser.close()
     viewer.close()
     without, with_viewer = statistics.median(plain), statistics.median(viewed)
@@ -79,6 +94,7 @@ def measure(runs: int) -> dict:
         "real_time_factor_with_viewer": with_viewer,
         "viewer_share_of_wall_time": 1.0 - with_viewer / without,
         "server_side_share_of_wall_time": statistics.median(shares),
+        "frames_per_second": statistics.median(rates),
         "target_share": TARGET_SHARE,
     }
 
@@ -86,7 +102,7 @@ def measure(runs: int) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--runs", type=int, default=7)
     args = parser.parse_args()
     report = measure(args.runs)
     if args.json:
@@ -95,7 +111,8 @@ def main() -> None:
     print(f"one scene update (AILA): {report['update_ms']:.2f} ms")
     print(
         f"grasp-then-place real-time factor: {report['real_time_factor_without_viewer']:.1f}x without a "
-        f"viewer, {report['real_time_factor_with_viewer']:.1f}x with a connected one"
+        f"viewer, {report['real_time_factor_with_viewer']:.1f}x with a connected one "
+        f"({report['frames_per_second']:.0f} frames per second)"
     )
     own, whole, target = (
         report["server_side_share_of_wall_time"],

@@ -23,7 +23,7 @@ import numpy as np
 from besman.sim.arm import Arm
 from besman.sim.overlays import EXECUTED, PLACE, PLANNED, SPREAD, SPREAD_SAMPLES, polyline
 from besman.sim.throwing import ThrowingConfig, ThrowingTask
-from besman.sim.viewer import FRAME_PERIOD, Viewer
+from besman.sim.viewer import MAX_FRAME_GAP, Viewer
 from besman.skills.errors import InputError
 from besman.skills.template import SkillTemplate
 
@@ -147,7 +147,7 @@ class ThrowingView:
                 scene.add_line_segments("/throw/flight", polyline(flight), EXECUTED, thickness=0.01)
             if step == end:
                 break
-            time.sleep(FRAME_PERIOD)
+            time.sleep(MAX_FRAME_GAP / 2)  # frames well within the gap, whatever the flight's drawing costs
             step = min(end, int((time.perf_counter() - start) * speed / task.timestep))
         tau = np.asarray(self.target)
         if self.landing is None:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from besman.sim.viewer import Viewer, headless_chromium
+from besman.sim.viewer import MAX_FRAME_GAP, Viewer, headless_chromium
 from besman.trees import grasp_then_place
 from besman.trees.tabletop import tabletop_run
 from besman.trees.watching import Watch
@@ -148,6 +148,28 @@ def test_the_viewer_binds_this_machine_by_default():
         assert viewer.server.get_host() == "127.0.0.1" and viewer.url.startswith("http://127.0.0.1:")
     finally:
         viewer.close()
+
+
+@pytest.mark.parametrize("call_interval", [0.020, 0.013, 0.001])  # ticks at speed 1, about 1.5 and unpaced
+def test_frames_come_at_least_30_times_a_second_whatever_the_tick_rate(call_interval):
+    import time
+
+    from besman.sim.world import tabletop_world
+
+    world = tabletop_world()
+    viewer = Viewer(world.model)
+    frames, deadline = [], time.perf_counter() + 0.6
+    try:
+        while time.perf_counter() < deadline:
+            if viewer.show(world.data):
+                frames.append(time.perf_counter())
+            time.sleep(call_interval)
+    finally:
+        viewer.close()
+    gaps = np.diff(frames)
+    assert np.median(gaps) <= 1 / 30, f"median gap {np.median(gaps):.3f} s"
+    if call_interval < MAX_FRAME_GAP / 2:  # several calls per frame are due: not a frame with each
+        assert np.median(gaps) >= MAX_FRAME_GAP / 2
 
 
 @pytest.mark.slow
