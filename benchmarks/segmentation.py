@@ -1,15 +1,19 @@
-"""Segmentation of the shared human recordings, side by side: ours, ruptures and speed minima, in one run.
+"""Segmentation of the shared recordings, side by side and held out: ours, ruptures and speed minima.
 
     python benchmarks/segmentation.py [--json] [--data DIR] [--cost linear|ar]
 
-Every method segments the Kalman/RTS-smoothed "Hand top" marker, resampled at 20 Hz:
-- ours: ``besman.learning.segment`` with its default hyperparameters (no tuning per file), on the hand's
-  velocity; also with the candidate change points pruned to 50 (stratified optimal resampling);
-- ruptures Pelt and Dynp with a ``linear`` cost (speed regressed on 1, t) or an ``ar`` (order 2) cost,
-  ``jump=1``; Pelt's penalty and Dynp's number of change points are chosen for each file by leave-one-out
-  (best mean F1 at +-0.2 s on the other files);
-- speed minima: local minima of the speed (scipy ``find_peaks`` on -speed, prominence 0.05 m/s, 0.3 s
-  apart) plus the recording's first and last sample.
+Every method segments the Kalman/RTS-smoothed "Hand top" marker, resampled at 20 Hz, and has settings that
+labels could tune:
+- ours: ``besman.learning.segment`` on the hand's velocity; its settings: the noise factor and the movement
+  onset threshold (``SegmentationPrior.noise_factor``, ``onset_threshold``); also pruned to 50 candidate
+  change points (stratified optimal resampling) with the settings chosen for exact inference;
+- ruptures Pelt (its penalty) and Dynp (its number of change points) with a ``linear`` cost (speed regressed
+  on 1, t) or an ``ar`` (order 2) cost, ``jump=1``;
+- speed minima: local minima of the speed (scipy ``find_peaks`` on -speed; its prominence and least distance)
+  plus the recording's first and last sample.
+No setting is chosen on the recordings it is scored on. Leave one subject out: settings chosen on subject 1's
+recordings (the best mean F1 over both margins), scored on subject 2's, and the other way round; beside it,
+all recordings, each scored with the settings chosen on all the others (leave one recording out).
 The truth is the start and end frames of the six main segments of each run. Scores: mean boundary F1 at
 +-0.1 and +-0.2 s (one-to-one matching of file frames; a hit is strictly closer than the margin: 6 and 12
 frames at 60 Hz), mean Hausdorff distance (s), seconds per recording. Then exact and pruned inference on one
@@ -19,7 +23,9 @@ long recording (the first eight runs one after the other, about 2 minutes): seco
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
+import re
 import time
 from pathlib import Path
 
@@ -30,16 +36,19 @@ from rich.progress import track
 from rich.table import Table
 from scipy.signal import find_peaks
 
-from besman.learning import Demonstration, load, resample, segment, smooth
+from besman.learning import Demonstration, SegmentationPrior, load, resample, segment, smooth
 from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
 from besman.learning.segmentation import boundary_f1
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
 RATE = 20.0
+OURS = list(itertools.product((2.0, 3.0, 4.0), (None, 0.05, 0.1, 0.2)))  # noise factor, onset threshold
+MINIMA = list(itertools.product((0.02, 0.05, 0.1, 0.2), (0.2, 0.3, 0.5)))  # prominence (m/s), distance (s)
 PENALTIES = np.logspace(-3, 0, 13)
 CHANGE_POINT_COUNTS = range(6, 17)
 PARTICLES = 50
 LONG_RUNS = 8
+SCORES = ("f1_0.1", "f1_0.2", "hausdorff_s", "seconds")
 
 
 def hausdorff(truth: np.ndarray, predicted: np.ndarray) -> float:
@@ -71,7 +80,7 @@ def one_after_another(demos: list[Demonstration]) -> Demonstration:
 def long_recording(demos: list[Demonstration]) -> dict[str, float]:
     demo = one_after_another(demos)
     start = time.perf_counter()
-    exact = segment(demo)
+    exact = segment(demo, max_particles=None)
     exact_seconds = time.perf_counter() - start
     start = time.perf_counter()
     pruned = segment(demo, max_particles=PARTICLES)
@@ -103,6 +112,54 @@ def predict(algorithm, kind: str, setting) -> list[int]:
     return algorithm.predict(n_bkps=int(setting))
 
 
+def subject_of(path: Path) -> str:
+    found = re.search(r"subject(\d+)", path.name)
+    if found is None:
+        raise SystemExit(f"{path}: the file name does not say its subject (subject<N>_...)")
+    return found.group(1)
+
+
+def ours(demo: Demonstration, truth: np.ndarray, setting, **options) -> dict[str, float]:
+    noise_factor, onset = setting
+    start = time.perf_counter()
+    found = segment(
+        demo, prior=SegmentationPrior(noise_factor=noise_factor), onset_threshold=onset, **options
+    )
+    return scores(demo, truth, found.times) | {"seconds": time.perf_counter() - start}
+
+
+def speed_minima(demo: Demonstration, truth: np.ndarray, setting) -> dict[str, float]:
+    prominence, distance = setting
+    start = time.perf_counter()
+    times, speed = resample(demo.times, smooth(demo, "Hand top").speed, RATE)
+    minima, _ = find_peaks(-speed, prominence=prominence, distance=round(distance * RATE))
+    predicted = times[np.r_[0, minima, len(times) - 1]]
+    return scores(demo, truth, predicted) | {"seconds": time.perf_counter() - start}
+
+
+def ruptures_scores(demo: Demonstration, truth: np.ndarray, kind: str, cost: str) -> list[dict[str, float]]:
+    """Every setting's scores on one recording (one fit, a prediction per setting)."""
+    start = time.perf_counter()
+    times, speed = resample(demo.times, smooth(demo, "Hand top").speed, RATE)
+    algorithm = ruptures_algorithm(kind, cost, ruptures_signal(speed, cost))
+    fitted = time.perf_counter() - start
+    edges, rows = np.r_[times, times[-1]], []
+    for setting in PENALTIES if kind == "pelt" else CHANGE_POINT_COUNTS:
+        start = time.perf_counter()
+        points = predict(algorithm, kind, setting)
+        seconds = fitted + time.perf_counter() - start
+        rows.append(scores(demo, truth, edges[np.r_[0, points]]) | {"seconds": seconds})
+    return rows
+
+
+def chosen(table: list[list[dict[str, float]]], train: list[int]) -> int:
+    """The setting with the best mean F1 (both margins) on the ``train`` recordings."""
+    quality = [
+        np.mean([table[k][i]["f1_0.1"] + table[k][i]["f1_0.2"] for k in train]) for i in range(len(table[0]))
+    ]
+    return int(np.argmax(quality))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -110,94 +167,95 @@ def main() -> None:
     parser.add_argument("--cost", choices=("linear", "ar"), default="linear", help="ruptures' cost")
     args = parser.parse_args()
     files = sorted(args.data.glob("*.tsv"))
-    if len(files) < 2:
-        raise SystemExit(f"{args.data}: need at least two recordings (*.tsv) for leave-one-out")
+    subjects = [subject_of(file) for file in files]
+    names = sorted(set(subjects))
+    if len(names) < 2:
+        raise SystemExit(f"{args.data}: need recordings of at least two subjects to hold one out")
 
-    pruned_name = f"ours (pruned, {PARTICLES} particles)"
-    results: dict[str, list[dict[str, float]]] = {"ours": [], pruned_name: [], "speed minima": []}
-    # Scores of every ruptures setting on every file, for the leave-one-out choice.
-    candidates: dict[str, list[list[dict[str, float]]]] = {"pelt": [], "dynp": []}
-    signals, demos = [], []
+    pruned = f"ours (pruned, {PARTICLES} particles)"
+    settings = {
+        "ours": OURS,
+        "speed minima": MINIMA,
+        f"ruptures Pelt ({args.cost})": list(PENALTIES),
+        f"ruptures Dynp ({args.cost})": list(CHANGE_POINT_COUNTS),
+    }
+    tables: dict[str, list[list[dict[str, float]]]] = {name: [] for name in settings}
+    demos, truths = [], []
     for file in track(files, description="segmenting", disable=args.json, console=Console(stderr=True)):
         demo = load(file)
-        demos.append(demo)
         truth = np.array(demo.boundary_frames(PICK_AND_PLACE_MAIN_SEGMENTS))
-        for name, options in (("ours", {}), (pruned_name, {"max_particles": PARTICLES})):
-            start = time.perf_counter()
-            ours = segment(demo, **options)
-            results[name].append(scores(demo, truth, ours.times) | {"seconds": time.perf_counter() - start})
-
-        start = time.perf_counter()
-        times, speed = resample(demo.times, smooth(demo, "Hand top").speed, RATE)
-        minima, _ = find_peaks(-speed, prominence=0.05, distance=round(0.3 * RATE))
-        predicted = times[np.r_[0, minima, len(times) - 1]]
-        results["speed minima"].append(
-            scores(demo, truth, predicted) | {"seconds": time.perf_counter() - start}
-        )
-
-        signal = ruptures_signal(speed, args.cost)
-        edges = np.r_[times, times[-1]]
-        signals.append(signal)
-        for kind, settings in (("pelt", PENALTIES), ("dynp", CHANGE_POINT_COUNTS)):
-            algorithm = ruptures_algorithm(kind, args.cost, signal)
-            candidates[kind].append(
-                [
-                    scores(demo, truth, edges[np.r_[0, predict(algorithm, kind, setting)]])
-                    for setting in settings
-                ]
+        demos.append(demo)
+        truths.append(truth)
+        tables["ours"].append([ours(demo, truth, setting) for setting in OURS])
+        tables["speed minima"].append([speed_minima(demo, truth, setting) for setting in MINIMA])
+        for kind in ("pelt", "dynp"):
+            tables[f"ruptures {kind.capitalize()} ({args.cost})"].append(
+                ruptures_scores(demo, truth, kind, args.cost)
             )
 
-    choices = {}
-    for kind, per_file in candidates.items():
-        name = f"ruptures {kind.capitalize()} ({args.cost})"
-        results[name], choices[name] = [], []
-        for k in range(len(per_file)):
-            others = [per_file[j] for j in range(len(per_file)) if j != k]
-            mean_f1 = [np.mean([o[i]["f1_0.2"] for o in others]) for i in range(len(others[0]))]
-            best = int(np.argmax(mean_f1))
-            setting = (PENALTIES if kind == "pelt" else CHANGE_POINT_COUNTS)[best]
-            choices[name].append(float(setting))
-            start = time.perf_counter()  # timed afresh: fit and predict with the chosen setting only
-            predict(ruptures_algorithm(kind, args.cost, signals[k]), kind, setting)
-            results[name].append(per_file[k][best] | {"seconds": time.perf_counter() - start})
-
-    summary = {
-        name: {key: float(np.mean([r[key] for r in rows])) for key in rows[0]}
-        for name, rows in results.items()
+    everyone = range(len(files))
+    folds = {
+        f"subject {test} (settings from subject {train})": (
+            [k for k in everyone if subjects[k] == train],
+            [k for k in everyone if subjects[k] == test],
+        )
+        for train, test in itertools.permutations(names, 2)
     }
-    others = {name: row for name, row in summary.items() if not name.startswith("ours")}
+    report_methods: dict[str, dict] = {}
+    for name, table in [*tables.items(), (pruned, None)]:
+        rows = {}
+        for fold, (train, test) in [*folds.items(), ("all (leave one recording out)", (None, None))]:
+            pairs = (
+                [([j for j in everyone if j != k], [k]) for k in everyone]
+                if test is None
+                else [(train, test)]
+            )
+            results, picked = [], []
+            for train_files, test_files in pairs:
+                i = chosen(tables["ours"] if table is None else table, train_files)
+                picked.append(settings["ours" if table is None else name][i])
+                for k in test_files:
+                    results.append(
+                        ours(demos[k], truths[k], OURS[i], max_particles=PARTICLES)
+                        if table is None
+                        else table[k][i]
+                    )
+            rows[fold] = {key: float(np.mean([r[key] for r in results])) for key in SCORES}
+            rows[fold]["settings"] = sorted({json.dumps(p) for p in picked})
+        report_methods[name] = rows
+
+    def margin(fold: str, key: str) -> float:
+        return report_methods["ours"][fold][key] - report_methods["speed minima"][fold][key]
+
     report = {
         "recordings": len(files),
+        "subjects": {name: subjects.count(name) for name in names},
         "rate_hz": RATE,
-        "methods": summary,
-        "leave_one_out_settings": choices,
-        "ours_best_f1": all(
-            summary["ours"][key] >= max(row[key] for row in others.values()) for key in ("f1_0.1", "f1_0.2")
-        ),
-        "ours_vs_best_other_f1_0.2": summary["ours"]["f1_0.2"]
-        / max(row["f1_0.2"] for row in others.values()),
+        "methods": report_methods,
+        "ours_minus_speed_minima": {
+            fold: {key: margin(fold, key) for key in ("f1_0.1", "f1_0.2")} for fold in report_methods["ours"]
+        },
         "long_recording": long_recording(demos[:LONG_RUNS]),
     }
     if args.json:
         print(json.dumps(report, indent=2))
         return
-    table = Table(title=f"Segmentation of {len(files)} recordings (F1: mean over recordings)")
-    for column in ("method", "F1 +-0.1 s", "F1 +-0.2 s", "Hausdorff (s)", "s / recording"):
-        table.add_column(column, justify="left" if column == "method" else "right")
-    for name, row in summary.items():
-        table.add_row(
-            name,
-            f"{row['f1_0.1']:.3f}",
-            f"{row['f1_0.2']:.3f}",
-            f"{row['hausdorff_s']:.2f}",
-            f"{row['seconds']:.3f}",
-        )
-    console = Console()
+    table = Table(title=f"Segmentation of {len(files)} recordings: F1 +-0.1 / +-0.2 s, settings held out")
+    table.add_column("method")
+    for fold in report_methods["ours"]:  # "subject 2 (settings from subject 1)" -> "subject 2 (from 1)"
+        table.add_column(re.sub(r"settings from subject (\d+)", r"from \1", fold), justify="right")
+    table.add_column("Hausdorff (s, all)", justify="right")
+    table.add_column("s / recording", justify="right")
+    for name, rows in report_methods.items():
+        cells = [f"{row['f1_0.1']:.3f} / {row['f1_0.2']:.3f}" for row in rows.values()]
+        every = rows["all (leave one recording out)"]
+        table.add_row(name, *cells, f"{every['hausdorff_s']:.2f}", f"{every['seconds']:.3f}")
+    console = Console(width=150)
     console.print(table)
     long = report["long_recording"]
+    for fold, margins in report["ours_minus_speed_minima"].items():
+        console.print(f"ours - speed minima, {fold}: {margins['f1_0.1']:+.3f} / {margins['f1_0.2']:+.3f}")
     console.print(
-        f"ours / best other F1 at +-0.2 s: {report['ours_vs_best_other_f1_0.2']:.2f}; "
-        f"ours best at both margins: {report['ours_best_f1']}\n"
         f"long recording ({long['duration_s']:.0f} s): exact {long['exact_seconds']:.1f} s, pruned "
         f"{long['pruned_seconds']:.1f} s (exact / pruned = {long['exact_over_pruned_seconds']:.1f}), "
         f"pruned vs exact boundaries F1 at +-0.1 s {long['pruned_vs_exact_f1_0.1']:.2f}"
