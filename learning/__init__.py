@@ -2,8 +2,9 @@
 
 :mod:`besman.learning.demonstration` (recordings and their loaders),
 :mod:`besman.learning.preprocessing` (Kalman/RTS smoothing, gaps, resampling, hand poses) and
-:mod:`besman.learning.segmentation` (exact Bayesian change-point inference: evidences, MAP, change-point
-probabilities, posterior samples; ``segment(demo)``), :mod:`besman.learning.segmentation_plot`,
+:mod:`besman.learning.changepoints` (exact Bayesian change-point inference: evidences, MAP, change-point
+probabilities, posterior samples), :mod:`besman.learning.segmentation` (``segment(demo)``: a recording cut
+into movements and holds, and boundary F1), :mod:`besman.learning.segmentation_plot`,
 :mod:`besman.learning.labelling` (building blocks: clustering, few-shot 1-NN),
 :mod:`besman.learning.imitation` (a Cartesian-DMP primitive per building block),
 :mod:`besman.learning.policy_search` (CMA-ES and xNES refining theta on batched rollouts) and
@@ -11,6 +12,7 @@ probabilities, posterior samples; ``segment(demo)``), :mod:`besman.learning.segm
 :mod:`besman.learning.throwing_plots`; :mod:`besman.learning.figures` writes PNGs).
 """
 
+from besman.learning.changepoints import SegmentationPrior, SegmentModel
 from besman.learning.demonstration import Demonstration, DemonstrationError, Segment, load
 from besman.learning.imitation import imitate
 from besman.learning.labelling import (
@@ -23,7 +25,7 @@ from besman.learning.labelling import (
 )
 from besman.learning.policy_search import CMAES, XNES, WarmStart, make_optimizer, policy_search
 from besman.learning.preprocessing import SmoothingConfig, hand_pose, resample, smooth
-from besman.learning.segmentation import Segmentation, SegmentationPrior, SegmentModel, segment
+from besman.learning.segmentation import Segmentation, segment
 
 __all__ = [
     "CMAES",

@@ -8,24 +8,22 @@ from scipy.special import logsumexp
 from scipy.stats import multivariate_t
 
 from besman.learning import Demonstration, DemonstrationError, load
-from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
-from besman.learning.segmentation import (
+from besman.learning.changepoints import (
     POLYNOMIAL_MODELS,
     SPEED_MODELS,
     VMCI,
     SegmentationPrior,
     SegmentModel,
-    boundary_f1,
     change_probabilities,
     length_prior,
     map_segmentation,
-    movement_onsets,
     pruned_map_segmentation,
     sample_segmentations,
-    segment,
     segment_evidences,
     stratified_optimal_resampling,
 )
+from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
+from besman.learning.segmentation import boundary_f1, movement_onsets, segment
 from besman.skills.transformation import minimum_jerk
 
 

@@ -1,0 +1,127 @@
+"""The browser viewer from the command line: `--view` for runs (a session that stays open after the run)
+and `besman view` (a run log replayed, a throwing template).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from besman.skills.errors import InputError
+
+
+def view_options(command: argparse.ArgumentParser) -> None:
+    """The options of a command that runs a tree to watch it in the browser (``--view``)."""
+    view = command.add_argument_group("browser viewer")
+    view.add_argument("--view", action="store_true", help="watch the run in the browser (viser)")
+    view.add_argument(
+        "--host", default="127.0.0.1", help="the viewer's address (default 127.0.0.1: this machine)"
+    )
+    view.add_argument("--port", type=int, default=8080, help="the viewer's port (busy: the next free one)")
+    view.add_argument("--speed", type=float, default=1.0, help="the run's pace with --view, x real time")
+
+
+def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple[dict, list]:
+    """Runs ``tree`` on AILA's tabletop; with --view inside a browser session that stays open after the run
+    (returned in the list, for :func:`serve`)."""
+    from besman.trees.tabletop import run_on_tabletop, summary
+
+    if not args.view:
+        return run_on_tabletop(tree, values, seed=getattr(args, "seed", None), log=log), []
+    from besman.trees.session import Session
+
+    session = Session(
+        tree,
+        values,
+        seed=getattr(args, "seed", None),
+        speed=args.speed,
+        viewer_options={"host": args.host, "port": args.port},
+    )
+    print(
+        f"viewer: {session.viewer.url} (the run goes at {args.speed:g}x real time)",
+        file=sys.stderr,
+        flush=True,
+    )
+    try:
+        result = session.start(log=log)
+    except BaseException:
+        session.close()
+        raise
+    return summary(session.runner, session.values, result), [session]
+
+
+def serve(viewers: list, code: int) -> int:
+    """Keeps a viewer (anything with ``url`` and ``close()``) open until Ctrl-C."""
+    if not viewers:
+        return code
+    print(f"the viewer stays at {viewers[0].url} until Ctrl-C", file=sys.stderr, flush=True)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        viewers[0].close()
+        return code
+
+
+def _view(args: argparse.Namespace) -> int:
+    options = {"host": args.host, "port": args.port}
+    if args.throw:
+        return _view_throw(args, options)
+    from besman.trees.watching import Replay
+
+    replay = Replay(args.replay, options)
+    print(
+        f"replay of {args.replay} ({len(replay.records)} ticks): {replay.viewer.url}",
+        file=sys.stderr,
+        flush=True,
+    )
+    return serve([replay], 0)
+
+
+def _view_throw(args: argparse.Namespace, options: dict) -> int:
+    from besman.sim.throwing_view import ThrowingView
+    from besman.skills.pool import SkillTemplatePool
+
+    pool = SkillTemplatePool(args.throw)
+    if args.template not in pool:
+        raise InputError(
+            f"--throw {args.throw}: no template {args.template!r} (it has: {', '.join(pool) or 'none'})"
+        )
+    target = None
+    if args.target is not None:
+        try:
+            target = [float(v) for v in args.target.split(",")]
+        except ValueError:
+            raise InputError(f"--target {args.target!r}: expected two numbers, X,Y") from None
+    view = ThrowingView(pool[args.template], target, options)
+    print(
+        f"throwing template {args.template!r}: {view.url} (drag the target to throw again)",
+        file=sys.stderr,
+        flush=True,
+    )
+    view.throw()
+    print(view.status.content)
+    return serve([view], 0)
+
+
+def register(commands) -> None:
+    """Adds this module's commands to the parser's subcommands."""
+    view = commands.add_parser(
+        "view",
+        help="in the browser: a run log replayed (scene and tree on a timeline), or a throwing template",
+    )
+    shown = view.add_mutually_exclusive_group(required=True)
+    shown.add_argument("--replay", metavar="LOG", help="a run's JSON-lines log (besman run --log)")
+    shown.add_argument(
+        "--throw",
+        metavar="POOL",
+        help="a pool with a throwing template: its spread at the target and the throw of its mean",
+    )
+    view.add_argument("--template", default="throw", help="the throwing template's name (default: throw)")
+    view.add_argument("--target", help="X,Y on the floor (default: the middle of the template's task box)")
+    view.add_argument(
+        "--host", default="127.0.0.1", help="the viewer's address (default 127.0.0.1: this machine)"
+    )
+    view.add_argument("--port", type=int, default=8080, help="the viewer's port (busy: the next free one)")
+    view.set_defaults(handler=_view)
