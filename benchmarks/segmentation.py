@@ -23,6 +23,7 @@ long recording (the first eight runs one after the other, about 2 minutes): seco
 from __future__ import annotations
 
 import argparse
+import functools
 import itertools
 import json
 import re
@@ -128,21 +129,28 @@ def ours(demo: Demonstration, truth: np.ndarray, setting, **options) -> dict[str
     return scores(demo, truth, found.times) | {"seconds": time.perf_counter() - start}
 
 
-def speed_minima(demo: Demonstration, truth: np.ndarray, setting) -> dict[str, float]:
+def hand_speed(demo: Demonstration) -> tuple[np.ndarray, np.ndarray, float]:
+    """The smoothed "Hand top" speed at ``RATE`` (times, speed) and the seconds that took."""
+    start = time.perf_counter()
+    times, speed = resample(demo.times, smooth(demo, "Hand top").speed, RATE)
+    return times, speed, time.perf_counter() - start
+
+
+def speed_minima(demo, truth, times, speed, smoothing: float, setting) -> dict[str, float]:
     prominence, distance = setting
     start = time.perf_counter()
-    times, speed = resample(demo.times, smooth(demo, "Hand top").speed, RATE)
     minima, _ = find_peaks(-speed, prominence=prominence, distance=round(distance * RATE))
     predicted = times[np.r_[0, minima, len(times) - 1]]
-    return scores(demo, truth, predicted) | {"seconds": time.perf_counter() - start}
+    return scores(demo, truth, predicted) | {"seconds": smoothing + time.perf_counter() - start}
 
 
-def ruptures_scores(demo: Demonstration, truth: np.ndarray, kind: str, cost: str) -> list[dict[str, float]]:
+def ruptures_scores(
+    demo, truth, times, speed, smoothing: float, kind: str, cost: str
+) -> list[dict[str, float]]:
     """Every setting's scores on one recording (one fit, a prediction per setting)."""
     start = time.perf_counter()
-    times, speed = resample(demo.times, smooth(demo, "Hand top").speed, RATE)
     algorithm = ruptures_algorithm(kind, cost, ruptures_signal(speed, cost))
-    fitted = time.perf_counter() - start
+    fitted = smoothing + time.perf_counter() - start
     edges, rows = np.r_[times, times[-1]], []
     for setting in PENALTIES if kind == "pelt" else CHANGE_POINT_COUNTS:
         start = time.perf_counter()
@@ -172,13 +180,8 @@ def main() -> None:
     if len(names) < 2:
         raise SystemExit(f"{args.data}: need recordings of at least two subjects to hold one out")
 
-    pruned = f"ours (pruned, {PARTICLES} particles)"
-    settings = {
-        "ours": OURS,
-        "speed minima": MINIMA,
-        f"ruptures Pelt ({args.cost})": list(PENALTIES),
-        f"ruptures Dynp ({args.cost})": list(CHANGE_POINT_COUNTS),
-    }
+    pelt, dynp = f"ruptures Pelt ({args.cost})", f"ruptures Dynp ({args.cost})"
+    settings = {"ours": OURS, "speed minima": MINIMA, pelt: list(PENALTIES), dynp: list(CHANGE_POINT_COUNTS)}
     tables: dict[str, list[list[dict[str, float]]]] = {name: [] for name in settings}
     demos, truths = [], []
     for file in track(files, description="segmenting", disable=args.json, console=Console(stderr=True)):
@@ -187,42 +190,37 @@ def main() -> None:
         demos.append(demo)
         truths.append(truth)
         tables["ours"].append([ours(demo, truth, setting) for setting in OURS])
-        tables["speed minima"].append([speed_minima(demo, truth, setting) for setting in MINIMA])
-        for kind in ("pelt", "dynp"):
-            tables[f"ruptures {kind.capitalize()} ({args.cost})"].append(
-                ruptures_scores(demo, truth, kind, args.cost)
-            )
+        hand = hand_speed(demo)
+        tables["speed minima"].append([speed_minima(demo, truth, *hand, setting) for setting in MINIMA])
+        tables[pelt].append(ruptures_scores(demo, truth, *hand, "pelt", args.cost))
+        tables[dynp].append(ruptures_scores(demo, truth, *hand, "dynp", args.cost))
 
+    @functools.cache
+    def pruned(k: int, i: int) -> dict[str, float]:
+        return ours(demos[k], truths[k], OURS[i], max_particles=PARTICLES)
+
+    # Each method: whose settings table chooses its setting, and its scores of a recording with a setting.
+    methods = {name: (name, lambda k, i, table=table: table[k][i]) for name, table in tables.items()}
+    methods[f"ours (pruned, {PARTICLES} particles)"] = ("ours", pruned)
     everyone = range(len(files))
-    folds = {
-        f"subject {test} (settings from subject {train})": (
-            [k for k in everyone if subjects[k] == train],
-            [k for k in everyone if subjects[k] == test],
-        )
+    folds = {  # each fold: its (training recordings, scored recordings) pairs
+        f"subject {test} (settings from subject {train})": [
+            ([k for k in everyone if subjects[k] == train], [k for k in everyone if subjects[k] == test])
+        ]
         for train, test in itertools.permutations(names, 2)
     }
+    folds["all (leave one recording out)"] = [([j for j in everyone if j != k], [k]) for k in everyone]
     report_methods: dict[str, dict] = {}
-    for name, table in [*tables.items(), (pruned, None)]:
-        rows = {}
-        for fold, (train, test) in [*folds.items(), ("all (leave one recording out)", (None, None))]:
-            pairs = (
-                [([j for j in everyone if j != k], [k]) for k in everyone]
-                if test is None
-                else [(train, test)]
-            )
-            results, picked = [], []
-            for train_files, test_files in pairs:
-                i = chosen(tables["ours"] if table is None else table, train_files)
-                picked.append(settings["ours" if table is None else name][i])
-                for k in test_files:
-                    results.append(
-                        ours(demos[k], truths[k], OURS[i], max_particles=PARTICLES)
-                        if table is None
-                        else table[k][i]
-                    )
-            rows[fold] = {key: float(np.mean([r[key] for r in results])) for key in SCORES}
-            rows[fold]["settings"] = sorted({json.dumps(p) for p in picked})
-        report_methods[name] = rows
+    for name, (chooser, scored) in methods.items():
+        report_methods[name] = {}
+        for fold, pairs in folds.items():
+            results, picked = [], set()
+            for train, test in pairs:
+                i = chosen(tables[chooser], train)
+                picked.add(json.dumps(settings[chooser][i]))
+                results += [scored(k, i) for k in test]
+            report_methods[name][fold] = {key: float(np.mean([r[key] for r in results])) for key in SCORES}
+            report_methods[name][fold]["settings"] = sorted(picked)
 
     def margin(fold: str, key: str) -> float:
         return report_methods["ours"][fold][key] - report_methods["speed minima"][fold][key]

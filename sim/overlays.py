@@ -34,6 +34,14 @@ EXECUTED_STEP = 0.01  # m the hand moves before the executed path grows by a poi
 EXECUTED_PERIOD = 0.2  # s of wall time between two drawings of the executed path
 PATH_SAMPLE_PERIOD = 0.02  # s between the drawn points of a planned path
 SPREAD_SAMPLES = 16
+LINE_WIDTH = 3.0  # pixels: the same on screen however far the camera is
+KINDS = {  # each kind of overlay and its toggle's label
+    "planned": "planned hand path",
+    "executed": "executed hand path",
+    "targets": "target frames",
+    "objects": "objects and place",
+    "spread": "template spread",
+}
 
 
 def polyline(points: np.ndarray) -> np.ndarray:
@@ -52,8 +60,7 @@ def template_spread(
 ) -> list[np.ndarray]:
     """Hand paths (each (K, 3)) of ``count`` primitives with theta ~ N(Theta(tau), Sigma_tau), started in the
     joint ``state`` (seeded: the same fan for the same template, tau and seed)."""
-    mean, covariance = template.distribution(tau)
-    thetas = np.random.default_rng(seed).multivariate_normal(mean, covariance, size=count, method="eigh")
+    thetas = template.sample(tau, count, seed)
     return [hand_path(arm, template.primitive(theta, tau), state, PATH_SAMPLE_PERIOD) for theta in thetas]
 
 
@@ -66,23 +73,10 @@ class Overlays:
         self._executed: list[np.ndarray] = []
         self._drawn = -np.inf  # wall time the executed path was last drawn
         self._objects: dict = {}  # per object, its frame
-        self._handles: dict[str, list] = {
-            "planned": [],
-            "executed": [],
-            "targets": [],
-            "objects": [],
-            "spread": [],
-        }
-        labels = {
-            "planned": "planned hand path",
-            "executed": "executed hand path",
-            "targets": "target frames",
-            "objects": "objects and place",
-            "spread": "template spread",
-        }
+        self._handles: dict[str, list] = {kind: [] for kind in KINDS}
         with server.gui.add_folder("Overlays"):
             self.toggles = {
-                kind: server.gui.add_checkbox(label, initial_value=True) for kind, label in labels.items()
+                kind: server.gui.add_checkbox(label, initial_value=True) for kind, label in KINDS.items()
             }
         for kind, toggle in self.toggles.items():
             toggle.on_update(lambda _, kind=kind: self._set_visible(kind))
@@ -110,18 +104,10 @@ class Overlays:
         if len(self._executed) == 0 or final or np.linalg.norm(hand - self._executed[-1]) > EXECUTED_STEP:
             self._executed.append(hand)
             now = time.perf_counter()
-            # A new line every frame would make every browser rebuild it 40 times a second.
+            # A new line with every frame would make every browser rebuild it some 30 times a second.
             if len(self._executed) > 1 and (final or now - self._drawn >= EXECUTED_PERIOD):
                 self._drawn = now
-                self._put(
-                    "executed",
-                    "/overlays/executed",
-                    self.server.scene.add_line_segments,
-                    points=polyline(self._executed),
-                    colors=EXECUTED,
-                    thickness=3.0,
-                    thickness_units="screen",
-                )
+                self._line("executed", "/overlays/executed", polyline(self._executed), EXECUTED)
 
     def follow(self, motion: Motion | None) -> None:
         """Draws a newly started motion's planned path and target frame; the executed path starts again."""
@@ -135,15 +121,7 @@ class Overlays:
         planned = self.arm.site_path(np.r_[reference.positions[::stride], reference.positions[-1:]])
         goal = self.arm.site_pose(reference.positions[-1])
         self._executed = []
-        self._put(
-            "planned",
-            "/overlays/planned",
-            self.server.scene.add_line_segments,
-            points=polyline(planned),
-            colors=PLANNED,
-            thickness=3.0,
-            thickness_units="screen",
-        )
+        self._line("planned", "/overlays/planned", polyline(planned), PLANNED)
         self._put(
             "targets",
             "/overlays/target",
@@ -165,26 +143,22 @@ class Overlays:
         """The place target: a green ring of 5 cm radius at ``position`` (x, y, z of the surface)."""
         angles = np.linspace(0.0, 2.0 * np.pi, 33)
         ring = np.column_stack([0.05 * np.cos(angles), 0.05 * np.sin(angles), np.full(33, 0.002)])
-        self._put(
-            "objects",
-            "/overlays/place",
-            self.server.scene.add_line_segments,
-            points=polyline(ring + np.asarray(position, dtype=float)),
-            colors=PLACE,
-            thickness=3.0,
-            thickness_units="screen",
-        )
+        self._line("objects", "/overlays/place", polyline(ring + np.asarray(position, dtype=float)), PLACE)
 
     def show_spread(self, paths: list[np.ndarray]) -> None:
         """A template's fan of hand paths (:func:`template_spread`)."""
         segments = np.concatenate([polyline(path) for path in paths])
+        self._line("spread", "/overlays/spread", segments, SPREAD, width=LINE_WIDTH / 2)
+
+    def _line(self, kind: str, name: str, segments: np.ndarray, colour, width: float = LINE_WIDTH):
+        """Adds (or replaces) an overlay of ``kind``: line ``segments`` (N, 2, 3), ``width`` pixels wide."""
         self._put(
-            "spread",
-            "/overlays/spread",
+            kind,
+            name,
             self.server.scene.add_line_segments,
             points=segments,
-            colors=SPREAD,
-            thickness=1.5,
+            colors=colour,
+            thickness=width,
             thickness_units="screen",
         )
 

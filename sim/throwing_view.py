@@ -55,20 +55,18 @@ class ThrowingView:
         self.target = tuple(box.check(target)[0])  # outside the box: named and refused
         self.arm = Arm(self.task.world, groups=("arm",))
         self.viewer = Viewer(self.task.model, **{"camera_distance": 10.0, **(viewer_options or {})})
-        scene, gui = self.viewer.server.scene, self.viewer.server.gui
+        gui = self.viewer.server.gui
         with gui.add_folder("Throw"):
             self.status = gui.add_markdown("")
-        x, y = self.target
-        self.gizmo = scene.add_transform_controls(
+        self.gizmo = self.viewer.planar_gizmo(
             "/throw/target",
+            (*self.target, 0.0),
+            box.low,
+            box.high,
             scale=0.6,
-            position=(x, y, 0.0),
-            disable_rotations=True,
-            active_axes=(True, True, False),
-            # viser's limits are offsets from where the gizmo was made
-            translation_limits=((box.low[0] - x, box.high[0] - x), (box.low[1] - y, box.high[1] - y), (0, 0)),
+            on_release=self.throw,
+            status=self.status,
         )
-        self.gizmo.on_update(self._moved)
         self.landing: tuple[float, float] | None = None
         self._landing_marker = None
         self.failure: str | None = None
@@ -100,10 +98,8 @@ class ThrowingView:
 
     def _aim(self) -> None:
         scene, tau = self.viewer.server.scene, np.asarray(self.target)
-        mean, covariance = self.template.distribution(tau)
-        samples = np.random.default_rng(0).multivariate_normal(
-            mean, covariance, SPREAD_SAMPLES, method="eigh"
-        )
+        mean = self.template.predict(tau)[0]
+        samples = self.template.sample(tau, SPREAD_SAMPLES, seed=0)
         *spread, planned = self._hand_paths(np.vstack([samples, mean]))
         scene.add_line_segments(
             "/throw/spread", np.concatenate([polyline(p) for p in spread]), SPREAD, thickness=0.006
@@ -139,9 +135,8 @@ class ThrowingView:
             data.qpos[:] = self._qpos[step]
             mujoco.mj_kinematics(task.model, data)
             self.viewer.show(data, force=True)
-            if (
-                step > released
-            ):  # the ball's path so far (whatever frames the pace skipped), up to its landing
+            # The ball's path so far (whatever frames the pace skipped), up to its landing.
+            if step > released:
                 last = min(step, landed)
                 flight = self._qpos[np.r_[released:last:PATH_STRIDE, last], ball : ball + 3]
                 scene.add_line_segments("/throw/flight", polyline(flight), EXECUTED, thickness=0.01)
@@ -162,11 +157,3 @@ class ThrowingView:
             f"target ({tau[0]:.2f}, {tau[1]:.2f}) m: landed at "
             f"({self.landing[0]:.2f}, {self.landing[1]:.2f}), {distance:.2f} m away"
         )
-
-    def _moved(self, event) -> None:
-        if getattr(event, "phase", "end") != "end":  # dragging; the throw comes when it is let go
-            return
-        try:
-            self.throw(self.gizmo.position[:2])
-        except InputError as error:
-            self.status.content = f"not moved: {error}"

@@ -4,11 +4,12 @@ A :class:`Viewer` serves a web page (viser; 127.0.0.1 unless told otherwise, a f
 world's MuJoCo model is mirrored by mjviser (geoms converted once, moving bodies as batched meshes, poses
 pushed inside one ``server.atomic()`` per frame), with contacts and frames as toggles in its scene panel.
 :meth:`Viewer.show` poses the scene from the simulation; during a run it is called after every tick and
-sends a frame whenever 1/40 s of wall time has passed since the last one (at least 30 frames per second of
-wall time, whatever the run's real-time factor) and always for the run's last tick. :meth:`Viewer.show_tree`
-writes the tree panel: every node of the running tree with its status colour and feedback, indented by
-depth, the running path, the values that matter (the blackboard's, the active motion) and the details of a
-node chosen in the panel's list.
+sends a frame whenever waiting for the next tick would leave the browser more than ``MAX_FRAME_GAP`` without
+one (at least 30 frames per second of wall time, whatever the run's real-time factor), and always for the
+run's last tick. :meth:`Viewer.planar_gizmo` lets people move a task value in the page.
+:meth:`Viewer.show_tree` writes the tree panel: every node of the running tree with its status colour and
+feedback, indented by depth, the running path, the values that matter (the blackboard's, the active motion)
+and the details of a node chosen in the panel's list.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from mjviser import ViserMujocoScene
 
 from besman.sim.arm import Arm
 from besman.sim.overlays import Overlays
+from besman.skills.errors import InputError
 
 # s of wall time the browser may go without a frame during a run: >= 30 frames per second, with a margin
 MAX_FRAME_GAP = 1.0 / 32.0
@@ -93,6 +95,41 @@ class Viewer:
         self._last_frame = now
         self.scene.update_from_mjdata(data)
         return True
+
+    def planar_gizmo(
+        self,
+        name: str,
+        position,
+        low,
+        high,
+        *,
+        scale: float,
+        on_release: Callable[[tuple[float, float]], None],
+        status,
+    ):
+        """A gizmo at ``position`` (x, y, z) that moves in x and y within [``low``, ``high``] (x, y); letting
+        go of it calls ``on_release((x, y))``; an :class:`InputError` it raises is shown in ``status``."""
+        x, y, z = position
+        handle = self.server.scene.add_transform_controls(
+            name,
+            scale=scale,
+            position=(x, y, z),
+            disable_rotations=True,
+            active_axes=(True, True, False),
+            # viser's limits are offsets from where the gizmo was made
+            translation_limits=((low[0] - x, high[0] - x), (low[1] - y, high[1] - y), (0.0, 0.0)),
+        )
+
+        @handle.on_update
+        def _(event) -> None:
+            if getattr(event, "phase", "end") != "end":  # dragging: nothing happens before it is let go
+                return
+            try:
+                on_release(tuple(float(v) for v in handle.position[:2]))
+            except InputError as error:
+                status.content = f"not moved: {error}"
+
+        return handle
 
     def overlays_for(self, arm: Arm) -> Overlays:
         """The scene's overlays of ``arm``'s motions (made with the first call, then the same)."""

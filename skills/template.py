@@ -193,6 +193,12 @@ class SkillTemplate:
         std = np.sqrt(variance)
         return mean, self._correlation * np.outer(std, std)
 
+    def sample(self, tau, count: int, seed: int) -> np.ndarray:
+        """``count`` thetas (count, n) drawn from N(Theta(tau), Omega(tau)); the same draws for the same
+        template, tau and seed."""
+        mean, covariance = self.distribution(tau)
+        return np.random.default_rng(seed).multivariate_normal(mean, covariance, size=count, method="eigh")
+
     def instantiate(self, tau) -> MovementPrimitive:
         """A primitive for task tau: the prototype with theta = Theta(tau)."""
         mean, _ = self.predict(tau)

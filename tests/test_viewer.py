@@ -336,7 +336,7 @@ def test_two_browsers_see_one_run_and_one_may_leave():
     values = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
     unwatched, _ = tabletop_run(grasp_then_place(), values)
     unwatched.run()
-    session = Session(grasp_then_place(), values, speed=2.0, viewer_options={"port": 0})
+    session = Session(grasp_then_place(), values, speed=1.0, viewer_options={"port": 0})
     try:
         with sync_playwright() as playwright:
             browser = headless_chromium(playwright, CHROMIUM)

@@ -4,9 +4,9 @@ A :class:`Session` holds a tree and the task values of AILA's tabletop (``object
 ``place``: where it goes). Its runs go in a background thread, driven by the viewer's controls:
 
 - **Run** starts a run (a new one after the last has ended, or when a gizmo moved since this one was set up)
-  or resumes a paused one; **Pause** stops after the
-  current tick; **Step** runs one tick and pauses; **Reset** abandons the run and sets up a new one with the
-  current task values; **speed** is the pace (x real time).
+  or resumes a paused one; **Pause** stops after the current tick; **Step** runs one tick and pauses;
+  **Reset** abandons the run and sets up a new one with the current task values; **speed** is the pace (x
+  real time).
 - **Breakpoint**: a node chosen in the list pauses the run at the first tick that visits it (once per run).
 - Two draggable gizmos mark the object and the place target (they move within the task's bounds); letting go
   of one sets that task value, and the next run uses it (a tree that instantiates templates instantiates them
@@ -31,12 +31,12 @@ from py_trees.common import Status
 from besman.sim.pick_place import PICK_PLACE_BOUNDS
 from besman.sim.viewer import Viewer
 from besman.sim.world import SHELF, TABLE
-from besman.skills.errors import InputError
 from besman.trees.runner import Runner, RunResult
 from besman.trees.tabletop import TreeSource, tabletop_run
 from besman.trees.watching import Watch
 
 NO_BREAKPOINT = "(none)"
+TAU_COLUMNS = {"object": slice(0, 2), "place": slice(2, 4)}  # where each task value sits in tau
 
 
 class _Abandoned(KeyboardInterrupt):
@@ -144,9 +144,8 @@ class Session:
     def set_value(self, name: str, xy) -> None:
         """Sets the task value ``name`` ("object" or "place") for the next run; refused outside the bounds."""
         x, y = (float(v) for v in xy)
-        columns = {"object": slice(0, 2), "place": slice(2, 4)}[name]
         tau = np.array([*self.values["object"], *self.values["place"]])
-        tau[columns] = (x, y)
+        tau[TAU_COLUMNS[name]] = (x, y)
         PICK_PLACE_BOUNDS.check(tau)  # a value outside the task's box is refused with its name
         self.values[name] = (x, y)
         self.gizmos[name].position = (x, y, self.gizmos[name].position[2])
@@ -220,26 +219,13 @@ class Session:
 
     def _gizmo(self, name: str, height: float):
         """A gizmo that moves in x and y within the task's bounds for ``name``; letting go sets the value."""
-        x, y = self.values[name]
-        columns = {"object": slice(0, 2), "place": slice(2, 4)}[name]
-        low, high = PICK_PLACE_BOUNDS.low[columns], PICK_PLACE_BOUNDS.high[columns]
-        handle = self.viewer.server.scene.add_transform_controls(
+        columns = TAU_COLUMNS[name]
+        return self.viewer.planar_gizmo(
             f"/task/{name}",
+            (*self.values[name], height),
+            PICK_PLACE_BOUNDS.low[columns],
+            PICK_PLACE_BOUNDS.high[columns],
             scale=0.15,
-            position=(x, y, height),
-            disable_rotations=True,
-            active_axes=(True, True, False),
-            # viser's limits are offsets from where the gizmo was made
-            translation_limits=((low[0] - x, high[0] - x), (low[1] - y, high[1] - y), (0.0, 0.0)),
+            on_release=lambda xy: self.set_value(name, xy),
+            status=self.state,
         )
-
-        @handle.on_update
-        def _(event) -> None:
-            if getattr(event, "phase", "end") != "end":  # dragging; the value is set when it is let go
-                return
-            try:
-                self.set_value(name, handle.position[:2])
-            except InputError as error:
-                self.state.content = f"not moved: {error}"
-
-        return handle

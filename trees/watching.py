@@ -66,6 +66,7 @@ class Watch:
         self.viewer, self.speed = viewer, speed
         self._start: tuple[float, float] | None = None  # (sim time, wall time) of the first tick
         self._runner: Runner | None = None
+        self._instantiating: list[InstantiateSkillTemplate] = []  # the runner's template leaves
         self._instances: dict = {}  # per instantiating leaf: the (template, tau) last shown
 
     def restart_pacing(self) -> None:
@@ -78,6 +79,9 @@ class Watch:
         overlays = viewer.overlays_for(executor.arm)
         if self._runner is not runner:
             self._runner, nodes = runner, {path: node for node, path in runner.nodes}
+            self._instantiating = [
+                node for node in nodes.values() if isinstance(node, InstantiateSkillTemplate)
+            ]
             viewer.set_nodes(
                 list(nodes),
                 lambda path: describe_node(
@@ -86,11 +90,8 @@ class Watch:
             )
         if self._start is None:
             self._start = (data.time, time.perf_counter())
-        for node, _ in runner.nodes:
-            if (
-                isinstance(node, InstantiateSkillTemplate)
-                and self._instances.get(node.id) is not node.instantiated
-            ):
+        for node in self._instantiating:
+            if self._instances.get(node.id) is not node.instantiated:
                 self._instances[node.id] = node.instantiated
                 template, tau = node.instantiated
                 overlays.show_spread(template_spread(executor.arm, template, tau, executor.stream.state()))
@@ -130,6 +131,13 @@ class Replay:
         self._fingers = executor.hand.gripper.qpos_indices
         self._objects = object_addresses(self.world)
         self._tick = 0
+        # Per tick, the blackboard as it stood (every key's last write); per node, the ticks that visited it.
+        self._values, self._visits, values = [], {}, {}
+        for record in self.records:
+            values.update((change["key"], json.dumps(change["value"])) for change in record["blackboard"])
+            self._values.append(dict(sorted(values.items())))
+            for path in record["statuses"]:
+                self._visits.setdefault(path, []).append(record["tick"])
         self.viewer = Viewer(self.world.model, **(viewer_options or {}))
         gui = self.viewer.server.gui
         with gui.add_folder("Replay"):
@@ -154,16 +162,13 @@ class Replay:
                 qpos[self._objects[name] : self._objects[name] + 7] = pose
         mujoco.mj_kinematics(self.world.model, self.world.data)
         self.viewer.show(self.world.data, force=True)
-        values = {}  # the blackboard as it stood: every key's last write up to this tick
-        for earlier in self.records[: tick + 1]:
-            values.update((change["key"], json.dumps(change["value"])) for change in earlier["blackboard"])
         self._tick = tick
-        self.viewer.show_tree(record, self.nodes, dict(sorted(values.items())))
+        self.viewer.show_tree(record, self.nodes, self._values[tick])
 
     def _describe(self, path: str) -> str:
         """A node's details in the log: its status and feedback at the shown tick, and when it was visited."""
         record = self.records[self._tick]
-        visited = [r["tick"] for r in self.records if path in r["statuses"]]
+        visited = self._visits.get(path, [])
         status, feedback = record["statuses"].get(path, "INVALID"), record["feedback"].get(path, "")
         lines = [
             f"**{path.rsplit('/', 1)[-1]}** (`{path}`)",
