@@ -3,8 +3,10 @@
 :mod:`besman.learning.demonstration` (recordings and their loaders),
 :mod:`besman.learning.preprocessing` (Kalman/RTS smoothing, gaps, resampling, hand poses) and
 :mod:`besman.learning.changepoints` (exact Bayesian change-point inference: evidences, MAP, change-point
-probabilities, posterior samples), :mod:`besman.learning.segmentation` (``segment(demo)``: a recording cut
-into movements and holds, and boundary F1), :mod:`besman.learning.segmentation_plot`,
+probabilities, posterior samples, several signals observed jointly), :mod:`besman.learning.contact` (the
+grip aperture and the object's marker as contact signals), :mod:`besman.learning.segmentation`
+(``segment(demo)``: a recording cut into movements and holds, hyperparameters by marginal likelihood, and
+boundary F1), :mod:`besman.learning.segmentation_plot`,
 :mod:`besman.learning.labelling` (building blocks: clustering, few-shot 1-NN),
 :mod:`besman.learning.imitation` (a Cartesian-DMP primitive per building block),
 :mod:`besman.learning.policy_search` (CMA-ES and xNES refining theta on batched rollouts) and

@@ -19,15 +19,21 @@ grasping), or makes a movement whose velocity rises from and falls back to zero 
 possibly with a corrective sub-movement. Each dimension has its own coefficients, so a straight reach is one
 bump in every coordinate.
 
+Several signals can be observed together (:class:`JointModel`: one model per signal; their evidences add
+in log space), for instance the hand's velocity with the grip aperture's rate
+(:mod:`besman.learning.contact`).
+
 Segment lengths have a geometric prior with hazard ``1 / expected length`` beyond a minimum length; a model
-may ask for a longer minimum (a pause shorter than that is a turning point, not a hold). From the evidences:
+may ask for a longer minimum (a pause shorter than that is a turning point, not a hold; a movement shorter
+than that is part of a neighbour). From the evidences:
 the MAP segmentation (Viterbi), the posterior probability of a change point at every sample
 (forward-backward), and exact samples from the posterior (backward filtering, forward sampling). For long
 signals the MAP can instead be found online over a bounded set of candidate change points, thinned by
 stratified optimal resampling. Hyperparameters default to data-driven values: the noise scale comes from the
-first differences of the data.
+first differences of the data; the filter's normalisers give the marginal likelihood
+(:func:`log_marginal_likelihood`), by which the segment length and the weight of holds can be chosen.
 
-The module is longer than most (~460 lines) because the evidences, the filtering recursions, the pruned
+The module is longer than most (~540 lines) because the evidences, the filtering recursions, the pruned
 online MAP and the sampling share one state layout and one set of per-length terms; its tests check them
 against one another and against brute-force enumeration, which is easier to keep true in one file.
 """
@@ -35,8 +41,8 @@ against one another and against brute-force enumeration, which is easier to keep
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.special import gammaln, logsumexp
@@ -117,17 +123,59 @@ REACHES = (
 )
 # Models of a speed signal: a hold (constant speed) and reaches.
 SPEED_MODELS = (SegmentModel("hold", degree=0, hold=True), *REACHES)
-# Models of a hand's velocity (the default). Pauses shorter than 0.4 s are turning points between movements,
-# not holds. Holds and movements are a priori equally likely (the two holds weigh as much as the six
-# movements together).
-HOLD_MIN_LENGTH = 0.4
+# A movement of several sub-movements, the most flexible movement model.
+SMOOTH_MOVEMENT = SegmentModel("smooth movement", degree=-1, bumps=((2.0, 2.0), (2.0, 3.0), (3.0, 2.0)))
+# Models of a hand's velocity (the default). Pauses shorter than HOLD_MIN_LENGTH are turning points between
+# movements, not holds: people who annotate recordings draw one boundary there, and a gap (two boundaries)
+# only where the hand rests for about half a second or longer (on the shared recordings, the pauses below
+# 0.1 m/s that were annotated as gaps last 0.45-1.8 s, those annotated as one boundary 0.07-0.57 s).
+# A movement lasts at least MOVEMENT_MIN_LENGTH: a human point-to-point reach takes 0.3 s or more, so a
+# shorter stretch is part of a neighbouring movement or pause. How much holds weigh against movements is
+# ``SegmentationPrior.hold_weight``.
+HOLD_MIN_LENGTH = 0.5
+MOVEMENT_MIN_LENGTH = 0.3
 VELOCITY_MODELS = (
-    SegmentModel("still", degree=-1, min_length=HOLD_MIN_LENGTH, weight=3.0, hold=True),
-    SegmentModel("drift", degree=0, min_length=HOLD_MIN_LENGTH, weight=3.0, hold=True),
-    *REACHES,
-    SegmentModel("reach with correction", degree=-1, bumps=((2.0, 5.0), (5.0, 2.0))),
-    SegmentModel("smooth movement", degree=-1, bumps=((2.0, 2.0), (2.0, 3.0), (3.0, 2.0))),
+    SegmentModel("still", degree=-1, min_length=HOLD_MIN_LENGTH, hold=True),
+    SegmentModel("drift", degree=0, min_length=HOLD_MIN_LENGTH, hold=True),
+    *(
+        replace(model, min_length=MOVEMENT_MIN_LENGTH)
+        for model in (
+            *REACHES,
+            SegmentModel("reach with correction", degree=-1, bumps=((2.0, 5.0), (5.0, 2.0))),
+            SMOOTH_MOVEMENT,
+        )
+    ),
 )
+# The zero model: a signal that does not change (an object at rest, a grip that holds).
+STILL = SegmentModel("still", degree=-1)
+
+
+@dataclass(frozen=True)
+class JointModel:
+    """A segment model of several signals observed together (the hand's velocity, an object's velocity, the
+    grip aperture's rate): ``parts[s]`` models signal s. Given the segment, the signals' noises are
+    independent, so the joint evidence is the product of the parts' evidences. Two signals may be two views
+    of one observation (an object's velocity, and its velocity relative to the hand's): then each model
+    observes exactly one of them and has None for the other, so that every model explains the same data
+    (the evidences are densities of the object's velocity, given the hand's). A part's minimum length
+    applies to the whole segment. ``holding``: whether the hand holds the object in such a segment (for
+    models of contact signals, :mod:`besman.learning.contact`).
+    """
+
+    name: str
+    parts: tuple[SegmentModel | None, ...]
+    weight: float = 1.0
+    hold: bool = False
+    holding: bool = False
+
+    def observed(self) -> list[tuple[int, SegmentModel]]:
+        """(signal index, model) of each signal this model observes."""
+        return [(s, part) for s, part in enumerate(self.parts) if part is not None]
+
+    @classmethod
+    def of(cls, model: SegmentModel) -> JointModel:
+        """The model of a single signal."""
+        return cls(model.name, (model,), model.weight, model.hold)
 
 
 @dataclass(frozen=True)
@@ -141,6 +189,12 @@ class SegmentationPrior:
     nu: float = 10.0  # inverse-Wishart degrees of freedom (> d - 1): the noise's pseudo-observations
     expected_length: float = 0.7  # s, mean segment length beyond the minimum (geometric prior)
     min_length: float = 0.15  # s, shortest segment
+    hold_weight: float = 3.0  # prior weight of each hold model over that of each movement model
+
+    def log_model_prior(self, models: Sequence[SegmentModel | JointModel]) -> np.ndarray:
+        """log p(q): the models' weights, those of holds times ``hold_weight``, normalised."""
+        weights = np.array([m.weight * (self.hold_weight if m.hold else 1.0) for m in models], dtype=float)
+        return np.log(weights / weights.sum())
 
 
 def samples(duration: float, rate: float) -> int:
@@ -208,13 +262,12 @@ class _EvidenceKernel:
 
     def segments(self, windows: np.ndarray, lengths: np.ndarray, second: np.ndarray) -> np.ndarray:
         """log P(y_k) for k segments given as ``windows`` (k, max(lengths), d) that start with each segment
-        (samples beyond its length are ignored), their ``lengths`` and Y^T Y ``second`` (k, d, d); -inf below
-        the model's minimum length."""
+        (samples beyond its length are ignored), their ``lengths`` and Y^T Y ``second`` (k, d, d), whatever
+        the model's minimum length (a segment may go on past one that is still too short to end)."""
         basis = self.model.padded_basis(lengths, self.rate)  # zero beyond each segment's end
         gram = np.einsum("kim,kin->kmn", basis, basis)
         cross = np.einsum("kim,kid->kmd", basis, windows)
-        values = self(lengths, gram, cross, second)
-        return np.where(lengths >= samples(self.model.min_length, self.rate), values, -np.inf)
+        return self(lengths, gram, cross, second)
 
 
 PROGRESS_STEP = 100  # samples between progress reports
@@ -254,6 +307,22 @@ def segment_evidences(
             np.full(len(starts), n), (basis.T @ basis)[None], cross, cumulative[n:] - cumulative[:-n]
         )
     return evidences
+
+
+def joint_evidences(
+    signals: Sequence[np.ndarray],
+    rate: float,
+    models: Sequence[JointModel],
+    priors: Sequence[SegmentationPrior],
+) -> list[np.ndarray]:
+    """E_q (T+1, T+1) of each joint model: the sum of its parts' :func:`segment_evidences` on their signals
+    (each with its own prior's noise), every distinct (signal, part) computed once."""
+    parts: dict[tuple[int, SegmentModel], np.ndarray] = {}
+    for model in models:
+        for s, part in model.observed():
+            if (s, part) not in parts:
+                parts[s, part] = segment_evidences(signals[s], rate, part, priors[s])
+    return [sum(parts[key] for key in model.observed()) for model in models]
 
 
 def length_prior(n_samples: int, rate: float, prior: SegmentationPrior) -> tuple[np.ndarray, np.ndarray]:
@@ -359,27 +428,35 @@ def stratified_optimal_resampling(
 
 
 def pruned_map_segmentation(
-    y: np.ndarray,
+    signals: Sequence[np.ndarray],
     rate: float,
-    models: tuple[SegmentModel, ...],
-    prior: SegmentationPrior,
+    models: Sequence[JointModel],
+    priors: Sequence[SegmentationPrior],
     model_prior: np.ndarray,
     max_particles: int,
     seed: int,
     progress: Callable[[int], None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """MAP segmentation with at most ``max_particles`` candidates for the last change point (Fearnhead and
-    Liu 2007, section 3.3): after each sample the filter's candidates are thinned by stratified optimal
-    resampling, and the online Viterbi recursion runs over the survivors. Costs O(T max_particles L) for
-    segments of up to L samples instead of O(T^2) time and memory; with ``max_particles`` >= T it is exact.
-    ``progress`` is called with the number of samples done since its last call."""
+    """MAP segmentation of ``signals`` observed together (one prior each; the first one's lengths apply)
+    with at most ``max_particles`` candidates for the last change point (Fearnhead and Liu 2007, section
+    3.3): after each sample the filter's candidates are thinned by stratified optimal resampling, and the
+    online Viterbi recursion runs over the survivors. Costs O(T max_particles L) for segments of up to L
+    samples instead of O(T^2) time and memory; with ``max_particles`` >= T it is exact. ``progress`` is
+    called with the number of samples done since its last call."""
     if max_particles < 2:
         raise InputError(f"max_particles must be at least 2, got {max_particles!r}")
-    y = _as_columns(y)
-    n_samples = len(y)
-    kernels = [_EvidenceKernel.of(y, rate, model, prior) for model in models]
-    cumulative = _second_moments(y)
-    log_g, log_survival = length_prior(n_samples, rate, prior)
+    signals = [_as_columns(y) for y in signals]
+    n_samples = len(signals[0])
+    kernels = {
+        (s, part): _EvidenceKernel.of(signals[s], rate, part, priors[s])
+        for model in models
+        for s, part in model.observed()
+    }
+    cumulative = [_second_moments(y) for y in signals]
+    minimum_lengths = np.array(
+        [max(samples(part.min_length, rate) for _, part in model.observed()) for model in models]
+    )
+    log_g, log_survival = length_prior(n_samples, rate, priors[0])
     # log P(a segment lasts at least n samples): 0 up to the minimum length.
     log_ongoing = np.where(np.isfinite(log_survival), log_survival, 0.0)
     forward, best = np.full(n_samples + 1, -np.inf), np.full(n_samples + 1, -np.inf)
@@ -392,20 +469,25 @@ def pruned_map_segmentation(
         if progress is not None and t % PROGRESS_STEP == 0:
             progress(PROGRESS_STEP)
         lengths = t - particles
-        # The segments [j, t) of every candidate j, gathered once for all models.
-        windows = y[np.minimum(particles[:, None] + np.arange(lengths.max())[None, :], n_samples - 1)]
-        second = cumulative[t] - cumulative[particles]
-        stacked = np.stack([kernel.segments(windows, lengths, second) for kernel in kernels])
-        stacked += model_prior[:, None]
+        # The segments [j, t) of every candidate j, gathered once per signal for all models.
+        rows = np.minimum(particles[:, None] + np.arange(lengths.max())[None, :], n_samples - 1)
+        windows = [y[rows] for y in signals]
+        second = [moments[t] - moments[particles] for moments in cumulative]
+        parts = {
+            key: kernel.segments(windows[key[0]], lengths, second[key[0]]) for key, kernel in kernels.items()
+        }
+        ongoing = np.stack([sum(parts[key] for key in model.observed()) for model in models])
+        ongoing += model_prior[:, None]
+        stacked = np.where(lengths[None, :] >= minimum_lengths[:, None], ongoing, -np.inf)  # may end at t
         lengths_prior = log_survival[lengths] if t == n_samples else log_g[lengths]
         scores = best[particles][None, :] + stacked + lengths_prior[None, :]  # (q, particle)
         q, k = np.unravel_index(np.argmax(scores), scores.shape)
         best[t], back[t], choice[t] = scores[q, k], particles[k], q
         if t == n_samples:
             break
-        combined = logsumexp(stacked, axis=0)
-        forward[t] = logsumexp(forward[particles] + combined + log_g[lengths])
+        forward[t] = logsumexp(forward[particles] + logsumexp(stacked, axis=0) + log_g[lengths])
         # P(C_t+1 = j): the segment from j goes on past t (it ending at t is the new particle's weight).
+        combined = logsumexp(ongoing, axis=0)
         weights = np.r_[forward[particles] + combined + log_ongoing[lengths + 1], forward[t]]
         particles = np.r_[particles, t]
         if len(particles) > max_particles:
@@ -415,6 +497,25 @@ def pruned_map_segmentation(
     return _trace_back(back, choice)
 
 
+def _forward(combined: np.ndarray, log_g: np.ndarray) -> np.ndarray:
+    """F[t] = log P(y[:t], change point at t) for t < T (Fearnhead and Liu's filter, unnormalised)."""
+    n_samples = combined.shape[0] - 1
+    forward = np.full(n_samples + 1, -np.inf)
+    forward[0] = 0.0
+    for t in range(1, n_samples):
+        forward[t] = logsumexp(forward[:t] + combined[:t, t] + log_g[t - np.arange(t)])
+    return forward
+
+
+def log_marginal_likelihood(combined: np.ndarray, log_g: np.ndarray, log_survival: np.ndarray) -> float:
+    """log P(y) from ``combined`` (T+1, T+1), log P(y[j:t] as one segment) summed over the models with
+    their prior: the forward filter, and the last segment's survival."""
+    n_samples = combined.shape[0] - 1
+    forward = _forward(combined, log_g)
+    starts = np.arange(n_samples)
+    return float(logsumexp(forward[starts] + combined[starts, n_samples] + log_survival[n_samples - starts]))
+
+
 def change_probabilities(
     evidences: list[np.ndarray], log_g: np.ndarray, log_survival: np.ndarray, model_prior: np.ndarray
 ) -> tuple[np.ndarray, float, np.ndarray]:
@@ -422,10 +523,7 @@ def change_probabilities(
     likelihood, and the backward messages Q (log P(y[t:] | change point at t))."""
     combined = logsumexp(_stacked(evidences, model_prior), axis=0)
     n_samples = combined.shape[0] - 1
-    forward = np.full(n_samples + 1, -np.inf)
-    forward[0] = 0.0
-    for t in range(1, n_samples):
-        forward[t] = logsumexp(forward[:t] + combined[:t, t] + log_g[t - np.arange(t)])
+    forward = _forward(combined, log_g)
     backward = _backward(combined, log_g, log_survival)
     marginal = float(backward[0])
     probability = np.exp(forward + backward - marginal)

@@ -1,31 +1,40 @@
 """Demonstrations cut into movements and holds: :func:`segment` and how it is scored.
 
-:func:`segment` smooths a marker (Kalman/RTS, :mod:`besman.learning.preprocessing`), resamples its velocity
-(or speed) and runs the change-point inference of :mod:`besman.learning.changepoints` on it: exact up to a
-minute of recording, pruned beyond. Where a movement meets a hold, the boundary then moves to the movement's
-onset or offset at 10 % of its peak speed (:func:`movement_onsets`), the convention of human reaching
-studies (and of people who annotate recordings). :func:`boundary_f1` scores boundaries against annotated ones.
+:func:`segment` smooths the hand's marker (Kalman/RTS, :mod:`besman.learning.preprocessing`), resamples its
+velocity (or speed) and, where the recording has them, the contact signals of :mod:`besman.learning.contact`
+(the object's velocity, the grip aperture's rate), and runs the change-point inference of
+:mod:`besman.learning.changepoints` on them jointly: exact up to a minute of recording, pruned beyond. The
+prior's segment length and the weight of holds are chosen per recording by the marginal likelihood that the
+inference computes anyway (:func:`choose_prior`), so a new person's recordings need no labels and no tuning.
+The model's change points then follow the conventions of people who annotate recordings
+(:mod:`besman.learning.boundaries`). :func:`boundary_f1` scores boundaries against annotated ones.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.special import logsumexp
 
+from besman.learning.boundaries import fold_minor_movements, merge_holds, movement_onsets, turning_points
 from besman.learning.changepoints import (
     SPEED_MODELS,
     VELOCITY_MODELS,
+    JointModel,
     SegmentationPrior,
     SegmentModel,
     change_probabilities,
+    joint_evidences,
     length_prior,
+    log_marginal_likelihood,
     map_segmentation,
     pruned_map_segmentation,
     samples,
-    segment_evidences,
 )
+from besman.learning.contact import GRIP, ContactMarkers, contact_signals, joint_models
 from besman.learning.demonstration import Demonstration, DemonstrationError
 from besman.learning.preprocessing import SmoothingConfig, resample, smooth
 from besman.skills.errors import InputError
@@ -33,6 +42,10 @@ from besman.skills.errors import InputError
 EXACT_UP_TO = 1200  # samples (a minute at 20 Hz): exact inference's O(T^2) memory stays around 100 MB
 AUTO_PARTICLES = 50  # beyond that: as close to exact as the benchmark shows (F1 unchanged), linear in T
 STILL_SPEED = 1e-3  # m/s: a marker never faster than this has not moved
+# The hyperparameters chosen by marginal likelihood: the mean segment length beyond the minimum (s) and the
+# weight of a hold model over a movement model. Both change only the priors, not the segment evidences, so
+# trying them all costs one forward recursion each.
+PRIOR_CHOICES = {"expected_length": (0.7, 1.4, 2.8), "hold_weight": (1.0, 3.0, 9.0)}
 
 
 @dataclass(frozen=True)
@@ -46,8 +59,13 @@ class Segmentation:
         frames: the demonstration's frame numbers at the boundaries.
         models: the name of each segment's model.
         holds: whether each segment is a pause (its model is a hold).
-        signal_times, signal: the signal that was segmented (the smoothed hand velocity (T, 3) or speed (T,),
-            resampled).
+        signal_times, signal: the hand's signal that was segmented (the smoothed hand velocity (T, 3) or speed
+            (T,), resampled).
+        signals: every signal observed, the hand's first (names with their markers).
+        notes: why a contact signal was left out (its markers are absent or could not be bridged).
+        prior: the hyperparameters used (chosen by marginal likelihood unless given).
+        log_evidence: the log marginal likelihood of the recording under ``prior`` (None when pruned
+            inference ran on the whole recording).
         change_probability: posterior probability of a change point at each sample of ``signal``, when asked.
     """
 
@@ -58,6 +76,10 @@ class Segmentation:
     holds: tuple[bool, ...]
     signal_times: np.ndarray
     signal: np.ndarray
+    signals: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
+    prior: SegmentationPrior = SegmentationPrior()
+    log_evidence: float | None = None
     change_probability: np.ndarray | None = field(default=None)
 
     def __len__(self) -> int:
@@ -79,7 +101,8 @@ def segment(
     signal: str = "velocity",
     rate: float = 20.0,
     models: tuple[SegmentModel, ...] | None = None,
-    prior: SegmentationPrior = SegmentationPrior(),
+    prior: SegmentationPrior | str = "auto",
+    contact: ContactMarkers | None = GRIP,
     smoothing: SmoothingConfig | None = None,
     posterior: bool = False,
     max_particles: int | str | None = "auto",
@@ -88,21 +111,28 @@ def segment(
     progress: Callable[[int], None] | None = None,
 ) -> Segmentation:
     """Segments a demonstration by the Kalman/RTS-smoothed ``marker``'s ``signal`` ("velocity" or "speed"),
-    resampled at ``rate`` (Hz): the MAP segmentation under ``models`` (default: ``VELOCITY_MODELS`` or
-    ``SPEED_MODELS``, by signal) with their weights as model priors; ``posterior`` adds the change-point
-    probabilities. A boundary lies halfway between the last sample of one segment and the first of the next.
-    Where a movement meets a hold, the boundary then moves to where the movement's speed crosses
-    ``onset_threshold`` x its peak (``movement_onsets``; None keeps the change points of the model). The
-    defaults need no tuning per recording (the noise scale is estimated from the data).
+    resampled at ``rate`` (Hz), observed jointly with the ``contact`` signals the recording has (None: the
+    hand alone; a missing marker leaves its signal out with a note in ``Segmentation.notes``): the MAP
+    segmentation under ``models`` (default: ``VELOCITY_MODELS`` or ``SPEED_MODELS``, by signal);
+    ``posterior`` adds the change-point probabilities. ``prior`` "auto" takes the defaults of
+    :class:`SegmentationPrior` with the segment length and hold weight of the highest marginal likelihood
+    (:func:`choose_prior`); the noise scales come from the data. A boundary lies halfway between the last
+    sample of one segment and the first of the next; consecutive holds are merged; where a movement meets a
+    hold, the boundary then moves to where the movement's speed crosses ``onset_threshold`` x its peak
+    (``movement_onsets``), and between two movements of the same contact to the speed minimum between their
+    peaks (``turning_points``); ``onset_threshold`` None keeps the change points of the model.
 
     Exact inference takes O(T^2) time and memory (about 0.5 s for 20 s at 20 Hz); ``max_particles`` bounds
     the candidate change points (``pruned_map_segmentation``; randomised: ``seed``) and is linear in T. The
     default, "auto", is exact up to :data:`EXACT_UP_TO` samples (a minute at 20 Hz) and 50 particles
-    beyond (unless ``posterior`` asks for exact inference); None is always exact. ``progress`` is called
-    with the number of samples done (pruned inference).
+    beyond (unless ``posterior`` asks for exact inference); None is always exact. With pruned inference the
+    prior is chosen on the first :data:`EXACT_UP_TO` samples. ``progress`` is called with the number of
+    samples done (pruned inference).
     """
     if signal not in SIGNALS:
         raise InputError(f"signal must be one of {SIGNALS}, got {signal!r}")
+    if not (prior == "auto" or isinstance(prior, SegmentationPrior)):
+        raise InputError(f"prior must be 'auto' or a SegmentationPrior, got {prior!r}")
     if max_particles == "auto":
         max_particles = None  # decided below, once the signal's length is known
         automatic = not posterior
@@ -114,7 +144,8 @@ def segment(
         raise InputError("posterior change-point probabilities need exact inference (max_particles=None)")
     if models is None:
         models = VELOCITY_MODELS if signal == "velocity" else SPEED_MODELS
-    smoothed = smooth(demo, marker, smoothing or SmoothingConfig())
+    smoothing = smoothing or SmoothingConfig()
+    smoothed = smooth(demo, marker, smoothing)
     signal_times, values = resample(
         demo.times, smoothed.velocities if signal == "velocity" else smoothed.speed, rate
     )
@@ -123,73 +154,94 @@ def segment(
             f"{demo.source or 'demonstration'}: marker {marker!r} does not move "
             f"(below {1000 * STILL_SPEED:g} mm/s throughout); there is nothing to segment"
         )
-    minimum = samples(prior.min_length, rate)
+    base = prior if isinstance(prior, SegmentationPrior) else SegmentationPrior()
+    minimum = samples(base.min_length, rate)
     if len(values) < 2 * minimum:
         raise DemonstrationError(
             f"{demo.source or 'demonstration'}: the recording lasts {demo.duration:.2f} s, shorter than two "
-            f"segments of the minimum length {prior.min_length:g} s"
+            f"segments of the minimum length {base.min_length:g} s"
         )
+    if contact:
+        hand = values if signal == "velocity" else resample(demo.times, smoothed.velocities, rate)[1]
+        extra, notes = contact_signals(demo, contact, smoothing, hand, rate)
+    else:
+        extra, notes = [], []
+    joint = joint_models(models, extra)
+    signals = [values, *(contact_signal.values for contact_signal in extra)]
+    priors = [base] * len(signals)
     if automatic and len(values) > EXACT_UP_TO:
         max_particles = AUTO_PARTICLES
-    weights = np.array([model.weight for model in models], dtype=float)
-    model_prior = np.log(weights / weights.sum())
-    probability = None
+    probability = log_evidence = None
     if max_particles is not None:
+        if prior == "auto":
+            head = [y[:EXACT_UP_TO] for y in signals]
+            base, _ = choose_prior(joint_evidences(head, rate, joint, priors), joint, rate, base)
+        priors = [base] * len(signals)
         points, choices = pruned_map_segmentation(
-            values, rate, models, prior, model_prior, max_particles, seed, progress
+            signals, rate, joint, priors, base.log_model_prior(joint), max_particles, seed, progress
         )
     else:
-        evidences = [segment_evidences(values, rate, model, prior) for model in models]
-        log_g, log_survival = length_prior(len(values), rate, prior)
+        evidences = joint_evidences(signals, rate, joint, priors)
+        if prior == "auto":
+            base, log_evidence = choose_prior(evidences, joint, rate, base)
+        log_g, log_survival = length_prior(len(values), rate, base)
+        model_prior = base.log_model_prior(joint)
         points, choices = map_segmentation(evidences, log_g, log_survival, model_prior)
-        if posterior:
-            probability = change_probabilities(evidences, log_g, log_survival, model_prior)[0]
+        if posterior or log_evidence is None:
+            probability, log_evidence, _ = change_probabilities(evidences, log_g, log_survival, model_prior)
+            probability = probability if posterior else None
     boundary_times = np.r_[signal_times, demo.times[-1]][points]
     boundary_times[1:-1] -= 0.5 / rate
     indices = demo.nearest_indices(boundary_times)
-    holds = tuple(models[q].hold for q in choices)
+    chosen = [joint[q] for q in choices]
+    indices, chosen = merge_holds(*fold_minor_movements(indices, chosen, smoothed.speed))
+    holds = tuple(model.hold for model in chosen)
     if onset_threshold is not None:
         indices = movement_onsets(indices, holds, smoothed.speed, onset_threshold)
+        indices = turning_points(indices, chosen, smoothed.speed, demo.rate)
     return Segmentation(
         boundaries=indices,
         times=demo.times[indices],
         frames=demo.frames[indices],
-        models=tuple(models[q].name for q in choices),
+        models=tuple(model.name for model in chosen),
         holds=holds,
         signal_times=signal_times,
         signal=values,
+        signals=(f"hand {signal} ({marker})", *dict.fromkeys(c.name for c in extra)),
+        notes=tuple(notes),
+        prior=base,
+        log_evidence=None if log_evidence is None else float(log_evidence),
         change_probability=probability,
     )
 
 
-def movement_onsets(
-    boundaries: np.ndarray, holds: tuple[bool, ...], speed: np.ndarray, fraction: float
-) -> np.ndarray:
-    """Boundaries between holds and movements moved to the movement's onset and offset: the first sample at
-    which its speed reaches ``fraction`` x its peak after a hold, the first below it before a hold (the usual
-    definition in studies of human reaching, with 5-10 % of the peak speed; people annotating recordings
-    see a movement begin there, not where it becomes statistically distinguishable from a hold).
-    ``boundaries`` are sample indices of ``speed``; a hold keeps at least one sample."""
-    if not 0.0 < fraction < 1.0:
-        raise InputError(
-            f"the onset threshold must be a fraction of the peak speed in (0, 1), got {fraction!r}"
-        )
-    moved = np.array(boundaries)
-    for k, hold in enumerate(holds):
-        if hold:
-            continue
-        start, end = boundaries[k], boundaries[k + 1]
-        peak = start + int(np.argmax(speed[start:end]))
-        slow = speed < fraction * speed[peak]
-        if k > 0 and holds[k - 1]:
-            before = np.flatnonzero(slow[boundaries[k - 1] + 1 : peak])
-            if len(before):
-                moved[k] = boundaries[k - 1] + 1 + before[-1] + 1
-        if k + 1 < len(holds) and holds[k + 1]:
-            after = np.flatnonzero(slow[peak : boundaries[k + 2]])
-            if len(after):
-                moved[k + 1] = peak + after[0]
-    return moved
+def choose_prior(
+    evidences: list[np.ndarray], models: tuple[JointModel, ...], rate: float, base: SegmentationPrior
+) -> tuple[SegmentationPrior, float]:
+    """``base`` with the expected segment length and hold weight of :data:`PRIOR_CHOICES` under which the
+    signal is most probable, and that log marginal likelihood (empirical Bayes, type-II maximum likelihood:
+    the Fearnhead-Liu filter's normalisers give log p(y | hyperparameters)). No labels are used.
+
+    The hold weight w only rescales the holds' share of the model prior, so with H and M the holds' and the
+    movements' evidences summed over their models (each with its weight), a segment's evidence is
+    log(w e^H + e^M) - log(w W_hold + W_move): two sums over the models serve every candidate."""
+    n_samples = evidences[0].shape[0] - 1
+    holds = np.array([model.hold for model in models])
+    weights = np.array([model.weight for model in models], dtype=float)
+    stacked = np.stack(evidences) + np.log(weights)[:, None, None]
+    hold_part = logsumexp(stacked[holds], axis=0) if holds.any() else np.full(stacked.shape[1:], -np.inf)
+    move_part = logsumexp(stacked[~holds], axis=0) if (~holds).any() else np.full(stacked.shape[1:], -np.inf)
+    best, best_log = base, -np.inf
+    for hold_weight in PRIOR_CHOICES["hold_weight"]:
+        normaliser = math.log(hold_weight * weights[holds].sum() + weights[~holds].sum())
+        combined = np.logaddexp(math.log(hold_weight) + hold_part, move_part) - normaliser
+        for expected in PRIOR_CHOICES["expected_length"]:
+            candidate = replace(base, expected_length=expected, hold_weight=hold_weight)
+            log_g, log_survival = length_prior(n_samples, rate, candidate)
+            marginal = log_marginal_likelihood(combined, log_g, log_survival)
+            if marginal > best_log:
+                best, best_log = candidate, marginal
+    return best, float(best_log)
 
 
 def boundary_f1(truth: np.ndarray, predicted: np.ndarray, margin: float) -> float:

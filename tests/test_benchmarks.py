@@ -86,6 +86,7 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings)
     assert report["recordings"] == 15
     methods = report["methods"]
     assert set(methods) == {
+        "ours, nothing tuned",
         "ours",
         "ours (pruned, 50 particles)",
         "speed minima",
@@ -109,8 +110,9 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings)
     for fold in folds:
         for key in ("f1_0.1", "f1_0.2"):
             assert report["ours_minus_speed_minima"][fold][key] == pytest.approx(
-                methods["ours"][fold][key] - methods["speed minima"][fold][key]
+                methods["ours, nothing tuned"][fold][key] - methods["speed minima"][fold][key]
             )
+    assert methods["ours, nothing tuned"][folds[2]]["settings"] == ["null"]  # the defaults: nothing chosen
     long = report["long_recording"]
     assert long["duration_s"] > 100 and math.isfinite(long["exact_seconds"])
     assert 0.9 < long["pruned_vs_exact_f1_0.1"] <= 1

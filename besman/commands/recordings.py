@@ -11,6 +11,7 @@ from besman.skills.storage import check_output
 
 def _segment(args: argparse.Namespace) -> int:
     from besman.learning import load
+    from besman.learning.contact import ContactMarkers
     from besman.learning.segmentation import segment
 
     if args.example_labels and not args.examples:
@@ -31,6 +32,7 @@ def _segment(args: argparse.Namespace) -> int:
         segmentation = segment(
             demo,
             marker=args.marker,
+            contact=None if args.hand_only else ContactMarkers(object=args.object),
             max_particles=None if args.exact else (args.max_particles or "auto"),
             progress=bar.update,
         )
@@ -50,6 +52,14 @@ def _segment(args: argparse.Namespace) -> int:
             for k in range(len(segmentation))
         ],
         "boundaries_frame": frames,
+        "signals": list(segmentation.signals),
+        "notes": list(segmentation.notes),
+        "prior": {
+            "expected_length_s": segmentation.prior.expected_length,
+            "hold_weight": segmentation.prior.hold_weight,
+            "chosen_by": "marginal likelihood",
+        },
+        "log_evidence": segmentation.log_evidence,
     }
     if args.plot:
         from besman.learning.segmentation_plot import plot_segmentation
@@ -58,6 +68,8 @@ def _segment(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(result, indent=2))
     else:
+        for note in segmentation.notes:
+            print(f"note: {note}")
         for k, entry in enumerate(result["segments"]):
             print(
                 f"{k:2d}  frames {entry['start_frame']}-{entry['end_frame']}  "
@@ -126,10 +138,19 @@ def _demos_show(args: argparse.Namespace) -> int:
 
 def register(commands) -> None:
     """Adds this module's commands to the parser's subcommands."""
-    segment = commands.add_parser("segment", help="cut a recording into segments (hand velocity, Bayesian)")
+    segment = commands.add_parser(
+        "segment", help="cut a recording into segments (hand velocity and grip, Bayesian)"
+    )
     segment.add_argument("file", help="a recording (.tsv Qualisys export, .csv, .npz)")
     segment.add_argument("--marker", default="Hand top", help="the marker to segment (default: Hand top)")
     segment.add_argument("--json", action="store_true", help="print the segments as JSON")
+    contact = segment.add_mutually_exclusive_group()
+    contact.add_argument(
+        "--object", metavar="MARKER", help="observe this marker on the object too (e.g. 'Box back')"
+    )
+    contact.add_argument(
+        "--hand-only", action="store_true", help="observe the hand alone (not the grip aperture)"
+    )
     inference = segment.add_mutually_exclusive_group()
     inference.add_argument(
         "--exact",

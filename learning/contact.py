@@ -1,0 +1,118 @@
+"""Contact: when the hand holds the object, read from the object's own marker and from the grip aperture.
+
+People who annotate pick-and-place recordings put boundaries at grasp and release, and two signals besides
+the hand's velocity tell where those are: the object moves exactly while it is held (it rests otherwise), and
+the grip aperture (thumb-index distance) stays constant while the fingers hold the object (it opens and
+closes otherwise). A segment is therefore either *free* or *holding*, and each contact signal has a model for
+each case; :func:`joint_models` pairs every model of the hand's velocity with both cases
+(:class:`besman.learning.changepoints.JointModel`), so that the change-point inference observes the hand
+and the contact signals jointly and puts a boundary where the contact changes even when the hand's speed
+alone would put it elsewhere.
+
+A file may lack these markers, or have them missing for too long to bridge: that signal is then left out,
+with a note that says why (the hand alone still segments).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from besman.learning.changepoints import SMOOTH_MOVEMENT, STILL, JointModel, SegmentModel
+from besman.learning.demonstration import Demonstration, DemonstrationError
+from besman.learning.preprocessing import SmoothingConfig, resample, smooth
+
+
+@dataclass(frozen=True)
+class ContactMarkers:
+    """The markers that show contact: ``object`` on the manipulated object, ``grip`` the two fingertips
+    whose distance is the grip aperture (None: not used; the names are the DFKI recordings' markers).
+
+    The object is not observed by default: on the shared recordings (``benchmarks/segmentation.py``) its
+    marker costs boundary F1 for both people, because the object goes on moving after the release (it
+    settles on the table) and twitches when the fingers touch it before the grasp; the grip does not.
+    ``ContactMarkers(object="Box back")`` observes it too."""
+
+    object: str | None = None
+    grip: tuple[str, str] | None = ("Thumb", "Index")
+
+
+GRIP = ContactMarkers()
+OBJECT_AND_GRIP = ContactMarkers(object="Box back")
+
+
+@dataclass(frozen=True)
+class ContactSignal:
+    """A resampled contact signal (T, d) and its model in a free and in a holding segment (None: a segment
+    in that state observes another view of the same data, a signal of the same name)."""
+
+    name: str
+    values: np.ndarray
+    free: SegmentModel | None
+    holding: SegmentModel | None
+
+    def model(self, holding: bool) -> SegmentModel | None:
+        return self.holding if holding else self.free
+
+
+def contact_signals(
+    demo: Demonstration, markers: ContactMarkers, smoothing: SmoothingConfig, hand: np.ndarray, rate: float
+) -> tuple[list[ContactSignal], list[str]]:
+    """The contact signals that ``demo`` has, resampled at ``rate``, and a note for each one it lacks:
+    - the object's velocity: at rest while free; while held, it moves with the hand (``hand``: the hand's
+      velocity (T, 3) at ``rate``), so its velocity relative to the hand's is zero;
+    - the grip aperture's rate of change: constant grip (zero rate) while holding, free otherwise."""
+    signals, notes = [], []
+    name = f"object velocity ({markers.object})"
+    if markers.object is not None:
+        velocities = _smoothed(demo, [markers.object], smoothing, notes, name)
+        if velocities is not None:
+            values = resample(demo.times, velocities[0].velocities, rate)[1]
+            signals.append(ContactSignal(name, values, STILL, None))
+            signals.append(ContactSignal(name, values - hand, None, STILL))  # relative to the hand
+    if markers.grip is not None:
+        first, second = markers.grip
+        name = f"grip aperture rate ({first}-{second})"
+        fingers = _smoothed(demo, [first, second], smoothing, notes, name)
+        if fingers is not None:
+            separation = fingers[0].positions - fingers[1].positions
+            relative = fingers[0].velocities - fingers[1].velocities
+            distance = np.maximum(np.linalg.norm(separation, axis=1), 1e-9)
+            rate_of_change = np.einsum("ti,ti->t", separation, relative) / distance  # d|separation|/dt
+            values = resample(demo.times, rate_of_change, rate)[1]
+            signals.append(ContactSignal(name, values, SMOOTH_MOVEMENT, STILL))
+    return signals, notes
+
+
+def _smoothed(demo, names, smoothing, notes, signal):
+    """The smoothed markers, or None with a note naming the marker that is absent or cannot be bridged."""
+    for marker in names:
+        if marker not in demo.channels:
+            notes.append(f"no {marker!r} marker in the recording: segmented without the {signal}")
+            return None
+    try:
+        return [smooth(demo, marker, smoothing) for marker in names]
+    except DemonstrationError as error:
+        notes.append(f"{error}: segmented without the {signal}")
+        return None
+
+
+def joint_models(
+    hand_models: tuple[SegmentModel, ...], signals: list[ContactSignal]
+) -> tuple[JointModel, ...]:
+    """Each hand model as a free and as a holding segment (half its weight each), with the contact signals'
+    models; the hand models alone when there are no contact signals."""
+    if not signals:
+        return tuple(JointModel.of(model) for model in hand_models)
+    return tuple(
+        JointModel(
+            f"{model.name}, holding" if holding else model.name,
+            (model, *(signal.model(holding) for signal in signals)),
+            model.weight / 2.0,
+            model.hold,
+            holding,
+        )
+        for model in hand_models
+        for holding in (False, True)
+    )
