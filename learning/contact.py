@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from besman.learning.changepoints import SMOOTH_MOVEMENT, STILL, JointModel, SegmentModel
+from besman.learning.changepoints import SMOOTH_MOVEMENT, STILL, JointModel, SegmentModel, noise_scale
 from besman.learning.demonstration import Demonstration, DemonstrationError
 from besman.learning.preprocessing import SmoothingConfig, resample, smooth
 
@@ -51,26 +51,36 @@ class ContactSignal:
     values: np.ndarray
     free: SegmentModel | None
     holding: SegmentModel | None
+    noise: float  # the prior noise scale of the observation (both views of one have the same)
 
     def model(self, holding: bool) -> SegmentModel | None:
         return self.holding if holding else self.free
 
 
 def contact_signals(
-    demo: Demonstration, markers: ContactMarkers, smoothing: SmoothingConfig, hand: np.ndarray, rate: float
+    demo: Demonstration,
+    markers: ContactMarkers,
+    smoothing: SmoothingConfig,
+    hand: np.ndarray,
+    rate: float,
+    noise_factor: float,
 ) -> tuple[list[ContactSignal], list[str]]:
     """The contact signals that ``demo`` has, resampled at ``rate``, and a note for each one it lacks:
     - the object's velocity: at rest while free; while held, it moves with the hand (``hand``: the hand's
-      velocity (T, 3) at ``rate``), so its velocity relative to the hand's is zero;
-    - the grip aperture's rate of change: constant grip (zero rate) while holding, free otherwise."""
+      velocity (T, 3) at ``rate``), so its velocity relative to the hand's is zero. Both models are exact,
+      so the noise is the marker's own (first differences);
+    - the grip aperture's rate of change: constant grip (zero rate) while holding, free otherwise (a smooth
+      movement of the fingers: a model that fits only roughly, hence ``noise_factor`` x the first-difference
+      noise, as for the hand)."""
     signals, notes = [], []
     name = f"object velocity ({markers.object})"
     if markers.object is not None:
         velocities = _smoothed(demo, [markers.object], smoothing, notes, name)
         if velocities is not None:
             values = resample(demo.times, velocities[0].velocities, rate)[1]
-            signals.append(ContactSignal(name, values, STILL, None))
-            signals.append(ContactSignal(name, values - hand, None, STILL))  # relative to the hand
+            noise = noise_scale(values)
+            signals.append(ContactSignal(name, values, STILL, None, noise))
+            signals.append(ContactSignal(name, values - hand, None, STILL, noise))  # relative to the hand
     if markers.grip is not None:
         first, second = markers.grip
         name = f"grip aperture rate ({first}-{second})"
@@ -81,7 +91,8 @@ def contact_signals(
             distance = np.maximum(np.linalg.norm(separation, axis=1), 1e-9)
             rate_of_change = np.einsum("ti,ti->t", separation, relative) / distance  # d|separation|/dt
             values = resample(demo.times, rate_of_change, rate)[1]
-            signals.append(ContactSignal(name, values, SMOOTH_MOVEMENT, STILL))
+            noise = noise_factor * noise_scale(values)
+            signals.append(ContactSignal(name, values, SMOOTH_MOVEMENT, STILL, noise))
     return signals, notes
 
 

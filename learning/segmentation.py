@@ -163,12 +163,12 @@ def segment(
         )
     if contact:
         hand = values if signal == "velocity" else resample(demo.times, smoothed.velocities, rate)[1]
-        extra, notes = contact_signals(demo, contact, smoothing, hand, rate)
+        extra, notes = contact_signals(demo, contact, smoothing, hand, rate, base.noise_factor)
     else:
         extra, notes = [], []
     joint = joint_models(models, extra)
     signals = [values, *(contact_signal.values for contact_signal in extra)]
-    priors = [base] * len(signals)
+    priors = [base, *(replace(base, noise=c.noise) for c in extra)]
     if automatic and len(values) > EXACT_UP_TO:
         max_particles = AUTO_PARTICLES
     probability = log_evidence = None
@@ -176,7 +176,7 @@ def segment(
         if prior == "auto":
             head = [y[:EXACT_UP_TO] for y in signals]
             base, _ = choose_prior(joint_evidences(head, rate, joint, priors), joint, rate, base)
-        priors = [base] * len(signals)
+        priors[0] = base  # its lengths apply to every signal
         points, choices = pruned_map_segmentation(
             signals, rate, joint, priors, base.log_model_prior(joint), max_particles, seed, progress
         )

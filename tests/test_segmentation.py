@@ -297,7 +297,7 @@ def test_boundary_f1_matches_one_to_one():
 def test_shared_recordings_are_segmented_with_the_default_hyperparameters(shared_recordings):
     """Mean boundary F1 per person, main segments' start and end frames as the truth, a hit strictly closer
     than 12 (6) frames; nothing tuned per person (segment length and hold weight by marginal likelihood).
-    Measured: subject 1 0.860 at +-0.2 s and 0.734 at +-0.1 s, subject 2 0.913 and 0.877 (targets 0.85 and
+    Measured: subject 1 0.857 at +-0.2 s and 0.728 at +-0.1 s, subject 2 0.944 and 0.906 (targets 0.85 and
     0.72 for each)."""
     scores: dict[str, list[tuple[float, float]]] = {}
     for path in sorted(shared_recordings.glob("*.tsv")):
