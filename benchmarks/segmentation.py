@@ -132,7 +132,7 @@ def subject_of(path: Path) -> str:
 
 
 def ours(demo: Demonstration, truth: np.ndarray, setting=None, **options) -> dict[str, float]:
-    """Our scores with a setting (signals, onset threshold), or with the defaults (None)."""
+    """Our scores with a setting (signals, hold minimum, onset threshold), or with the defaults (None)."""
     start = time.perf_counter()
     if setting is not None:
         signals, hold_minimum, onset = setting

@@ -41,7 +41,7 @@ def fold_minor_movements(
     boundaries, models = list(boundaries), list(models)
     k = 0
     while k < len(models) and len(models) > 1:
-        peaks = [float(speed[boundaries[j] : boundaries[j + 1] + 1].max()) for j in range(len(models))]
+        peaks = [float(speed[boundaries[j] : boundaries[j + 1]].max()) for j in range(len(models))]
         neighbours = [j for j in (k - 1, k + 1) if 0 <= j < len(models)]
         moving = [peaks[j] for j in neighbours if not models[j].hold]
         if models[k].hold or not moving or peaks[k] >= MINOR_MOVEMENT * max(moving):

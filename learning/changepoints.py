@@ -33,7 +33,7 @@ stratified optimal resampling. Hyperparameters default to data-driven values: th
 first differences of the data; the filter's normalisers give the marginal likelihood
 (:func:`log_marginal_likelihood`), by which the segment length and the weight of holds can be chosen.
 
-The module is longer than most (~540 lines) because the evidences, the filtering recursions, the pruned
+The module is longer than most (~560 lines) because the evidences, the filtering recursions, the pruned
 online MAP and the sampling share one state layout and one set of per-length terms; its tests check them
 against one another and against brute-force enumeration, which is easier to keep true in one file.
 """
@@ -63,7 +63,7 @@ class SegmentModel:
         bump_scale: prior standard deviation of a bump's height (units of y).
         min_length: shortest segment of this model (s); the prior's ``min_length`` applies too.
         weight: prior weight of the model (the prior probabilities of a set of models are their normalised
-            weights).
+            weights, those of holds times ``SegmentationPrior.hold_weight``).
         hold: whether a segment of this model is a pause rather than a movement (holds get no label).
     """
 
@@ -191,9 +191,13 @@ class SegmentationPrior:
     min_length: float = 0.15  # s, shortest segment
     hold_weight: float = 3.0  # prior weight of each hold model over that of each movement model
 
+    def model_weights(self, models: Sequence[SegmentModel | JointModel]) -> np.ndarray:
+        """The models' prior weights: their own, those of holds times ``hold_weight``."""
+        return np.array([m.weight * (self.hold_weight if m.hold else 1.0) for m in models], dtype=float)
+
     def log_model_prior(self, models: Sequence[SegmentModel | JointModel]) -> np.ndarray:
-        """log p(q): the models' weights, those of holds times ``hold_weight``, normalised."""
-        weights = np.array([m.weight * (self.hold_weight if m.hold else 1.0) for m in models], dtype=float)
+        """log p(q): the normalised :meth:`model_weights`."""
+        weights = self.model_weights(models)
         return np.log(weights / weights.sum())
 
 
@@ -432,17 +436,18 @@ def pruned_map_segmentation(
     rate: float,
     models: Sequence[JointModel],
     priors: Sequence[SegmentationPrior],
+    lengths: SegmentationPrior,
     model_prior: np.ndarray,
     max_particles: int,
     seed: int,
     progress: Callable[[int], None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """MAP segmentation of ``signals`` observed together (one prior each; the first one's lengths apply)
-    with at most ``max_particles`` candidates for the last change point (Fearnhead and Liu 2007, section
-    3.3): after each sample the filter's candidates are thinned by stratified optimal resampling, and the
-    online Viterbi recursion runs over the survivors. Costs O(T max_particles L) for segments of up to L
-    samples instead of O(T^2) time and memory; with ``max_particles`` >= T it is exact. ``progress`` is
-    called with the number of samples done since its last call."""
+    """MAP segmentation of ``signals`` observed together (each with its prior's noise; the segment lengths of
+    ``lengths``) with at most ``max_particles`` candidates for the last change point (Fearnhead and Liu 2007,
+    section 3.3): after each sample the filter's candidates are thinned by stratified optimal resampling,
+    and the online Viterbi recursion runs over the survivors. Costs O(T max_particles L) for segments of up
+    to L samples instead of O(T^2) time and memory; with ``max_particles`` >= T it is exact. ``progress``
+    is called with the number of samples done since its last call."""
     if max_particles < 2:
         raise InputError(f"max_particles must be at least 2, got {max_particles!r}")
     signals = [_as_columns(y) for y in signals]
@@ -456,7 +461,7 @@ def pruned_map_segmentation(
     minimum_lengths = np.array(
         [max(samples(part.min_length, rate) for _, part in model.observed()) for model in models]
     )
-    log_g, log_survival = length_prior(n_samples, rate, priors[0])
+    log_g, log_survival = length_prior(n_samples, rate, lengths)
     # log P(a segment lasts at least n samples): 0 up to the minimum length.
     log_ongoing = np.where(np.isfinite(log_survival), log_survival, 0.0)
     forward, best = np.full(n_samples + 1, -np.inf), np.full(n_samples + 1, -np.inf)

@@ -21,7 +21,8 @@ import numpy as np
 
 from besman.learning.changepoints import SMOOTH_MOVEMENT, STILL, JointModel, SegmentModel, noise_scale
 from besman.learning.demonstration import Demonstration, DemonstrationError
-from besman.learning.preprocessing import SmoothingConfig, resample, smooth
+from besman.learning.preprocessing import SmoothedChannel, SmoothingConfig, resample, smooth
+from besman.skills.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -36,6 +37,19 @@ class ContactMarkers:
 
     object: str | None = None
     grip: tuple[str, str] | None = ("Thumb", "Index")
+
+    def __post_init__(self) -> None:
+        if not (self.object is None or isinstance(self.object, str)):
+            raise InputError(f"ContactMarkers.object must be a marker name or None, got {self.object!r}")
+        if not (
+            self.grip is None
+            or (
+                isinstance(self.grip, tuple)
+                and len(self.grip) == 2
+                and all(isinstance(m, str) for m in self.grip)
+            )
+        ):
+            raise InputError(f"ContactMarkers.grip must be two marker names or None, got {self.grip!r}")
 
 
 GRIP = ContactMarkers()
@@ -67,14 +81,16 @@ def contact_signals(
 ) -> tuple[list[ContactSignal], list[str]]:
     """The contact signals that ``demo`` has, resampled at ``rate``, and a note for each one it lacks:
     - the object's velocity: at rest while free; while held, it moves with the hand (``hand``: the hand's
-      velocity (T, 3) at ``rate``), so its velocity relative to the hand's is zero. Both models are exact,
-      so the noise is the marker's own (first differences);
+      velocity (T, 3) at ``rate``), so its velocity relative to the hand's is zero. Both views are scored
+      with the object marker's own noise (first differences), so that they compare on one scale; the
+      relative view also carries the hand's velocity error and the grasp's lever arm, which this scale does
+      not allow for;
     - the grip aperture's rate of change: constant grip (zero rate) while holding, free otherwise (a smooth
       movement of the fingers: a model that fits only roughly, hence ``noise_factor`` x the first-difference
       noise, as for the hand)."""
     signals, notes = [], []
-    name = f"object velocity ({markers.object})"
     if markers.object is not None:
+        name = f"object velocity ({markers.object})"
         velocities = _smoothed(demo, [markers.object], smoothing, notes, name)
         if velocities is not None:
             values = resample(demo.times, velocities[0].velocities, rate)[1]
@@ -96,16 +112,18 @@ def contact_signals(
     return signals, notes
 
 
-def _smoothed(demo, names, smoothing, notes, signal):
+def _smoothed(
+    demo: Demonstration, names: list[str], smoothing: SmoothingConfig, notes: list[str], signal_name: str
+) -> list[SmoothedChannel] | None:
     """The smoothed markers, or None with a note naming the marker that is absent or cannot be bridged."""
     for marker in names:
         if marker not in demo.channels:
-            notes.append(f"no {marker!r} marker in the recording: segmented without the {signal}")
+            notes.append(f"no {marker!r} marker in the recording: segmented without the {signal_name}")
             return None
     try:
         return [smooth(demo, marker, smoothing) for marker in names]
     except DemonstrationError as error:
-        notes.append(f"{error}: segmented without the {signal}")
+        notes.append(f"{error}: segmented without the {signal_name}")
         return None
 
 

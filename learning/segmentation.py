@@ -39,7 +39,8 @@ from besman.learning.demonstration import Demonstration, DemonstrationError
 from besman.learning.preprocessing import SmoothingConfig, resample, smooth
 from besman.skills.errors import InputError
 
-EXACT_UP_TO = 1200  # samples (a minute at 20 Hz): exact inference's O(T^2) memory stays around 100 MB
+EXACT_UP_TO = 1200  # samples (a minute at 20 Hz): exact inference's evidences take Q x 12 MB (16 models:
+# 190 MB with the grip); beyond, pruned inference is linear in T
 AUTO_PARTICLES = 50  # beyond that: as close to exact as the benchmark shows (F1 unchanged), linear in T
 STILL_SPEED = 1e-3  # m/s: a marker never faster than this has not moved
 # The hyperparameters chosen by marginal likelihood: the mean segment length beyond the minimum (s) and the
@@ -64,8 +65,8 @@ class Segmentation:
         signals: every signal observed, the hand's first (names with their markers).
         notes: why a contact signal was left out (its markers are absent or could not be bridged).
         prior: the hyperparameters used (chosen by marginal likelihood unless given).
-        log_evidence: the log marginal likelihood of the recording under ``prior`` (None when pruned
-            inference ran on the whole recording).
+        log_evidence: the log marginal likelihood of the recording under ``prior`` (None with pruned
+            inference).
         change_probability: posterior probability of a change point at each sample of ``signal``, when asked.
     """
 
@@ -117,10 +118,12 @@ def segment(
     ``posterior`` adds the change-point probabilities. ``prior`` "auto" takes the defaults of
     :class:`SegmentationPrior` with the segment length and hold weight of the highest marginal likelihood
     (:func:`choose_prior`); the noise scales come from the data. A boundary lies halfway between the last
-    sample of one segment and the first of the next; consecutive holds are merged; where a movement meets a
-    hold, the boundary then moves to where the movement's speed crosses ``onset_threshold`` x its peak
-    (``movement_onsets``), and between two movements of the same contact to the speed minimum between their
-    peaks (``turning_points``); ``onset_threshold`` None keeps the change points of the model.
+    sample of one segment and the first of the next. Then (:mod:`besman.learning.boundaries`) minor
+    movements are folded into their neighbours and consecutive holds merged; where a movement meets a hold,
+    the boundary moves to where the movement's speed crosses ``onset_threshold`` x its peak
+    (``movement_onsets``), and between two movements to the speed minimum between their peaks unless the
+    contact changes farther from it (``turning_points``); ``onset_threshold`` None leaves the boundaries at
+    the model's change points.
 
     Exact inference takes O(T^2) time and memory (about 0.5 s for 20 s at 20 Hz); ``max_particles`` bounds
     the candidate change points (``pruned_map_segmentation``; randomised: ``seed``) and is linear in T. The
@@ -133,6 +136,8 @@ def segment(
         raise InputError(f"signal must be one of {SIGNALS}, got {signal!r}")
     if not (prior == "auto" or isinstance(prior, SegmentationPrior)):
         raise InputError(f"prior must be 'auto' or a SegmentationPrior, got {prior!r}")
+    if not (contact is None or isinstance(contact, ContactMarkers)):
+        raise InputError(f"contact must be None or ContactMarkers(...), got {contact!r}")
     if max_particles == "auto":
         max_particles = None  # decided below, once the signal's length is known
         automatic = not posterior
@@ -167,6 +172,12 @@ def segment(
     else:
         extra, notes = [], []
     joint = joint_models(models, extra)
+    shortest = min(max(samples(part.min_length, rate) for _, part in model.observed()) for model in joint)
+    if len(values) < shortest:
+        raise DemonstrationError(
+            f"{demo.source or 'demonstration'}: the recording lasts {demo.duration:.2f} s, shorter than the "
+            f"shortest segment any model allows ({shortest / rate:g} s)"
+        )
     signals = [values, *(contact_signal.values for contact_signal in extra)]
     priors = [base, *(replace(base, noise=c.noise) for c in extra)]
     if automatic and len(values) > EXACT_UP_TO:
@@ -176,9 +187,8 @@ def segment(
         if prior == "auto":
             head = [y[:EXACT_UP_TO] for y in signals]
             base, _ = choose_prior(joint_evidences(head, rate, joint, priors), joint, rate, base)
-        priors[0] = base  # its lengths apply to every signal
         points, choices = pruned_map_segmentation(
-            signals, rate, joint, priors, base.log_model_prior(joint), max_particles, seed, progress
+            signals, rate, joint, priors, base, base.log_model_prior(joint), max_particles, seed, progress
         )
     else:
         evidences = joint_evidences(signals, rate, joint, priors)
@@ -187,9 +197,11 @@ def segment(
         log_g, log_survival = length_prior(len(values), rate, base)
         model_prior = base.log_model_prior(joint)
         points, choices = map_segmentation(evidences, log_g, log_survival, model_prior)
-        if posterior or log_evidence is None:
+        if posterior:
             probability, log_evidence, _ = change_probabilities(evidences, log_g, log_survival, model_prior)
-            probability = probability if posterior else None
+        elif log_evidence is None:
+            combined = logsumexp(np.stack(evidences) + model_prior[:, None, None], axis=0)
+            log_evidence = log_marginal_likelihood(combined, log_g, log_survival)
     boundary_times = np.r_[signal_times, demo.times[-1]][points]
     boundary_times[1:-1] -= 0.5 / rate
     indices = demo.nearest_indices(boundary_times)
@@ -223,17 +235,20 @@ def choose_prior(
     the Fearnhead-Liu filter's normalisers give log p(y | hyperparameters)). No labels are used.
 
     The hold weight w only rescales the holds' share of the model prior, so with H and M the holds' and the
-    movements' evidences summed over their models (each with its weight), a segment's evidence is
-    log(w e^H + e^M) - log(w W_hold + W_move): two sums over the models serve every candidate."""
+    movements' evidences summed over their models (each with its own weight), a segment's evidence is
+    log(w e^H + e^M) - log(sum of the weights under w): two sums over the models serve every candidate."""
     n_samples = evidences[0].shape[0] - 1
-    holds = np.array([model.hold for model in models])
-    weights = np.array([model.weight for model in models], dtype=float)
-    stacked = np.stack(evidences) + np.log(weights)[:, None, None]
-    hold_part = logsumexp(stacked[holds], axis=0) if holds.any() else np.full(stacked.shape[1:], -np.inf)
-    move_part = logsumexp(stacked[~holds], axis=0) if (~holds).any() else np.full(stacked.shape[1:], -np.inf)
+    own = replace(base, hold_weight=1.0).model_weights(models)
+    hold_part = move_part = np.full(evidences[0].shape, -np.inf)
+    for model, evidence, weight in zip(models, evidences, own, strict=True):
+        if model.hold:
+            hold_part = np.logaddexp(hold_part, evidence + math.log(weight))
+        else:
+            move_part = np.logaddexp(move_part, evidence + math.log(weight))
+    hold_weights = PRIOR_CHOICES["hold_weight"] if any(m.hold for m in models) else (base.hold_weight,)
     best, best_log = base, -np.inf
-    for hold_weight in PRIOR_CHOICES["hold_weight"]:
-        normaliser = math.log(hold_weight * weights[holds].sum() + weights[~holds].sum())
+    for hold_weight in hold_weights:
+        normaliser = math.log(replace(base, hold_weight=hold_weight).model_weights(models).sum())
         combined = np.logaddexp(math.log(hold_weight) + hold_part, move_part) - normaliser
         for expected in PRIOR_CHOICES["expected_length"]:
             candidate = replace(base, expected_length=expected, hold_weight=hold_weight)

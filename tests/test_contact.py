@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from besman.cli import main
-from besman.learning import Demonstration, SegmentationPrior, segment
+from besman.learning import Demonstration, DemonstrationError, SegmentationPrior, SegmentModel, segment
 from besman.learning.changepoints import (
     POLYNOMIAL_MODELS,
     STILL,
@@ -21,6 +21,7 @@ from besman.learning.changepoints import (
 )
 from besman.learning.contact import OBJECT_AND_GRIP, ContactMarkers
 from besman.learning.segmentation import PRIOR_CHOICES, choose_prior
+from besman.skills.errors import InputError
 from besman.skills.transformation import minimum_jerk
 
 RATE = 60.0
@@ -186,8 +187,25 @@ def test_joint_evidences_add_up_and_pruned_inference_on_several_signals_is_exact
     model_prior = prior.log_model_prior(models)
     exact = map_segmentation(evidences, log_g, log_survival, model_prior)
     pruned = pruned_map_segmentation(
-        [hand, other], 10.0, models, [prior, prior], model_prior, len(hand) + 1, seed=0
+        [hand, other], 10.0, models, [prior, prior], prior, model_prior, len(hand) + 1, seed=0
     )
     np.testing.assert_array_equal(pruned[0], exact[0])
     np.testing.assert_array_equal(pruned[1], exact[1])
     np.testing.assert_array_equal(exact[0], [0, 15, 30, 45])
+
+
+def test_bad_contact_settings_and_models_too_long_for_the_recording_are_refused_by_name():
+    demo = grasp_after_creeping(0, ("Thumb", "Index"))
+    with pytest.raises(InputError, match=r"contact must be None or ContactMarkers\(...\), got 'Box back'"):
+        segment(demo, contact="Box back")
+    with pytest.raises(
+        InputError, match=r"ContactMarkers.grip must be two marker names or None, got \('Thumb',\)"
+    ):
+        ContactMarkers(grip=("Thumb",))
+    with pytest.raises(InputError, match=r"ContactMarkers\.object must be a marker name or None, got 3"):
+        ContactMarkers(object=3)
+    too_long = (SegmentModel("long hold", degree=-1, min_length=5.0, hold=True),)
+    with pytest.raises(
+        DemonstrationError, match=r"grasp.npz: the recording lasts 4.18 s, shorter than the shortest"
+    ):
+        segment(demo, models=too_long)

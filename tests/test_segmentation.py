@@ -115,7 +115,7 @@ def test_filtering_and_map_equal_brute_force_enumeration(seed):
     assert computed_marginal == pytest.approx(marginal, abs=1e-9)
     np.testing.assert_allclose(computed[1:-1], probabilities[1:-1], atol=1e-9)
     online, online_models = pruned_map_segmentation(
-        [y], rate, [JointModel.of(m) for m in models], [prior], model_prior, len(y) + 1, seed=0
+        [y], rate, [JointModel.of(m) for m in models], [prior], prior, model_prior, len(y) + 1, seed=0
     )
     assert tuple(online) == points and tuple(online_models) == chosen, "no pruning: the exact MAP"
 
