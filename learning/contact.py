@@ -9,6 +9,10 @@ each case; :func:`joint_models` pairs every model of the hand's velocity with bo
 and the contact signals jointly and puts a boundary where the contact changes even when the hand's speed
 alone would put it elsewhere.
 
+From the grip alone, "holding" means that the grip does not change, which a hand at rest with still
+fingers also shows; what matters for the boundaries is where that state changes. With the object's marker,
+it is the object moving with the hand.
+
 A file may lack these markers, or have them missing for too long to bridge: that signal is then left out,
 with a note that says why (the hand alone still segments).
 """
@@ -52,6 +56,7 @@ class ContactMarkers:
             raise InputError(f"ContactMarkers.grip must be two marker names or None, got {self.grip!r}")
 
 
+OBJECT_SIGNAL = "object velocity"
 GRIP = ContactMarkers()
 OBJECT_AND_GRIP = ContactMarkers(object="Box back")
 
@@ -90,7 +95,7 @@ def contact_signals(
       noise, as for the hand)."""
     signals, notes = [], []
     if markers.object is not None:
-        name = f"object velocity ({markers.object})"
+        name = f"{OBJECT_SIGNAL} ({markers.object})"
         velocities = _smoothed(demo, [markers.object], smoothing, notes, name)
         if velocities is not None:
             values = resample(demo.times, velocities[0].velocities, rate)[1]
@@ -131,12 +136,14 @@ def joint_models(
     hand_models: tuple[SegmentModel, ...], signals: list[ContactSignal]
 ) -> tuple[JointModel, ...]:
     """Each hand model as a free and as a holding segment (half its weight each), with the contact signals'
-    models; the hand models alone when there are no contact signals."""
+    models; the hand models alone when there are no contact signals. A holding model's name says what shows
+    it: ", holding" with the object's marker, ", steady grip" from the grip alone."""
     if not signals:
         return tuple(JointModel.of(model) for model in hand_models)
+    state = "holding" if any(signal.name.startswith(OBJECT_SIGNAL) for signal in signals) else "steady grip"
     return tuple(
         JointModel(
-            f"{model.name}, holding" if holding else model.name,
+            f"{model.name}, {state}" if holding else model.name,
             (model, *(signal.model(holding) for signal in signals)),
             model.weight / 2.0,
             model.hold,

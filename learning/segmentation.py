@@ -60,6 +60,8 @@ class Segmentation:
         frames: the demonstration's frame numbers at the boundaries.
         models: the name of each segment's model.
         holds: whether each segment is a pause (its model is a hold).
+        holding: whether the hand holds the object in each segment by the contact signals (from the grip
+            alone: whether the grip is steady; all False without contact signals).
         signal_times, signal: the hand's signal that was segmented (the smoothed hand velocity (T, 3) or speed
             (T,), resampled).
         signals: every signal observed, the hand's first (names with their markers).
@@ -75,6 +77,7 @@ class Segmentation:
     frames: np.ndarray
     models: tuple[str, ...]
     holds: tuple[bool, ...]
+    holding: tuple[bool, ...]
     signal_times: np.ndarray
     signal: np.ndarray
     signals: tuple[str, ...] = ()
@@ -217,6 +220,7 @@ def segment(
         frames=demo.frames[indices],
         models=tuple(model.name for model in chosen),
         holds=holds,
+        holding=tuple(model.holding for model in chosen),
         signal_times=signal_times,
         signal=values,
         signals=(f"hand {signal} ({marker})", *dict.fromkeys(c.name for c in extra)),

@@ -94,8 +94,8 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings)
         "ruptures Dynp (linear)",
     }
     folds = [
-        "subject 2 (settings from subject 1)",
         "subject 1 (settings from subject 2)",
+        "subject 2 (settings from subject 1)",
         "all (leave one recording out)",
     ]
     assert report["subjects"] == {"1": 9, "2": 6}

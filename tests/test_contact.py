@@ -91,7 +91,8 @@ def test_a_contact_signal_that_contradicts_the_speed_moves_the_boundary_where_th
         assert len(alone) == len(joint) == 4, (alone.times, joint.times)  # hold, reach, carry, hold
         assert alone.times[2] == pytest.approx(SPEED_MINIMUM, abs=0.05)
         assert joint.times[2] == pytest.approx(CONTACT, abs=0.1)
-        assert joint.models[2].endswith("holding") and not joint.models[1].endswith("holding")
+        assert joint.holding[1:3] == (False, True) and not any(alone.holding)
+        assert joint.models[2].endswith(", holding" if "Box back" in markers else ", steady grip")
         assert joint.signals[1:] == (
             ("object velocity (Box back)",)
             if "Box back" in markers
