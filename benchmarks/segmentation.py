@@ -1,15 +1,15 @@
 """Segmentation of the shared recordings, side by side and held out: ours, ruptures and speed minima.
 
-    python benchmarks/segmentation.py [--json] [--data DIR] [--cost linear|ar]
+    python benchmarks/segmentation.py [--json] [--plot PNG] [--data DIR] [--cost linear|ar]
 
 Every method segments the Kalman/RTS-smoothed "Hand top" marker, resampled at 20 Hz, and has settings that
 labels could tune:
 - ours, nothing tuned: ``besman.learning.segment`` with its defaults: the hand's velocity observed with the
   grip aperture, segment length and hold weight chosen per recording by marginal likelihood (no labels);
-- ours: the same with the settings that labels could tune: the signals observed (the hand alone, with the
-  grip, with the grip and the object's marker), the shortest hold (``HOLD_MIN_LENGTH``) and the movement
-  onset threshold; also pruned to 50 candidate change points (stratified optimal resampling) with the
-  settings chosen for exact inference;
+- ours, tuned on labels: the same with the settings that labels could tune: the signals observed (the
+  hand alone, with the grip, with the grip and the object's marker), the shortest hold
+  (``HOLD_MIN_LENGTH``) and the movement onset threshold; also pruned to 50 candidate change points
+  (stratified optimal resampling) with the settings chosen for exact inference;
 - ruptures Pelt (its penalty) and Dynp (its number of change points) with a ``linear`` cost (speed regressed
   on 1, t) or an ``ar`` (order 2) cost, ``jump=1``;
 - speed minima: local minima of the speed (scipy ``find_peaks`` on -speed; its prominence and least distance)
@@ -19,10 +19,10 @@ constants (shortest hold 0.5 s and movement 0.3 s, minor movements below 20 % of
 the grip as the default contact signal) were set while developing on the shared recordings of subjects 1
 and 2, so on those the "nothing tuned" row is not held out from them; subject 3 of the same published data
 set (not in ../shared; ``--data`` a folder with all 21 recordings) was not looked at while setting them.
-The "ours" row chooses the signals, the shortest hold and the onset threshold held out. Leave one subject
-out: each subject's recordings scored with the settings chosen on the other subjects' (the best mean F1
-over both margins); beside it, all recordings, each scored with the settings chosen on all the others
-(leave one recording out).
+The "ours, tuned on labels" row chooses the signals, the shortest hold and the onset threshold held out.
+Leave one subject out: each subject's recordings scored with the settings chosen on the other subjects'
+(the best mean F1 over both margins); beside it, all recordings, each scored with the settings chosen on
+all the others (leave one recording out).
 The truth is the start and end frames of the six main segments of each run. Scores: mean boundary F1 at
 +-0.1 and +-0.2 s (one-to-one matching of file frames; a hit is strictly closer than the margin: 6 and 12
 frames at 60 Hz), mean Hausdorff distance (s), seconds per recording. Then exact and pruned inference on one
@@ -52,6 +52,8 @@ from besman.learning.changepoints import VELOCITY_MODELS
 from besman.learning.contact import GRIP, OBJECT_AND_GRIP
 from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
 from besman.learning.segmentation import boundary_f1
+from besman.skills.errors import InputError
+from besman.skills.storage import check_output
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
 RATE = 20.0
@@ -61,6 +63,7 @@ MINIMA = list(itertools.product((0.02, 0.05, 0.1, 0.2), (0.2, 0.3, 0.5)))  # pro
 PENALTIES = np.logspace(-3, 0, 13)
 CHANGE_POINT_COUNTS = range(6, 17)
 PARTICLES = 50
+UNTUNED, TUNED = "ours, nothing tuned", "ours, tuned on labels"
 LONG_RUNS = 8
 SCORES = ("f1_0.1", "f1_0.2", "hausdorff_s", "seconds")
 
@@ -183,12 +186,45 @@ def chosen(table: list[list[dict[str, float]]], train: list[int]) -> int:
     return int(np.argmax(quality))
 
 
+def short_fold(fold: str) -> str:
+    """ "subject 2 (settings from subject 1)" -> "subject 2 (from 1)"."""
+    return re.sub(r"settings from subjects? ", "from ", fold)
+
+
+def plot_scores(report_methods: dict[str, dict], path: Path) -> None:
+    """Grouped bars: every method's mean F1 in every fold, at +-0.1 s (left) and +-0.2 s (right)."""
+    from besman.learning.figures import plt, save_png
+
+    folds = list(next(iter(report_methods.values())))
+    figure, axes = plt.subplots(1, 2, figsize=(13, 5), sharey=True, layout="constrained")
+    width = 0.8 / len(report_methods)
+    for axis, key in zip(axes, ("f1_0.1", "f1_0.2"), strict=True):
+        for m, (name, rows) in enumerate(report_methods.items()):
+            positions = np.arange(len(folds)) + (m - (len(report_methods) - 1) / 2) * width
+            axis.bar(positions, [rows[fold][key] for fold in folds], width, label=name)
+        axis.set_xticks(
+            np.arange(len(folds)), [short_fold(fold).replace(" (", "\n(") for fold in folds], fontsize=8
+        )
+        axis.set_title(f"boundary F1 at +-{key[3:]} s, settings held out")
+        axis.set_ylim(0, 1)
+        axis.grid(axis="y", alpha=0.3)
+    axes[0].set_ylabel("mean F1")
+    figure.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=3, fontsize=8)
+    save_png(figure, path)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--data", type=Path, default=DATA, help="folder of the shared recordings")
     parser.add_argument("--cost", choices=("linear", "ar"), default="linear", help="ruptures' cost")
+    parser.add_argument("--plot", type=Path, metavar="PNG", help="also draw the held-out F1 of every method")
     args = parser.parse_args()
+    if args.plot:
+        try:
+            check_output(args.plot, option="--plot", suffixes=(".png",))
+        except InputError as error:
+            raise SystemExit(str(error)) from None
     files = sorted(args.data.glob("*.tsv"))
     subjects = [subject_of(file) for file in files]
     names = sorted(set(subjects))
@@ -197,8 +233,8 @@ def main() -> None:
 
     pelt, dynp = f"ruptures Pelt ({args.cost})", f"ruptures Dynp ({args.cost})"
     settings = {
-        "ours, nothing tuned": [None],
-        "ours": OURS,
+        UNTUNED: [None],
+        TUNED: OURS,
         "speed minima": MINIMA,
         pelt: list(PENALTIES),
         dynp: list(CHANGE_POINT_COUNTS),
@@ -210,8 +246,8 @@ def main() -> None:
         truth = np.array(demo.boundary_frames(PICK_AND_PLACE_MAIN_SEGMENTS))
         demos.append(demo)
         truths.append(truth)
-        tables["ours, nothing tuned"].append([ours(demo, truth)])
-        tables["ours"].append([ours(demo, truth, setting) for setting in OURS])
+        tables[UNTUNED].append([ours(demo, truth)])
+        tables[TUNED].append([ours(demo, truth, setting) for setting in OURS])
         hand = hand_speed(demo)
         tables["speed minima"].append([speed_minima(demo, truth, *hand, setting) for setting in MINIMA])
         tables[pelt].append(ruptures_scores(demo, truth, *hand, "pelt", args.cost))
@@ -223,7 +259,7 @@ def main() -> None:
 
     # Each method: whose settings table chooses its setting, and its scores of a recording with a setting.
     methods = {name: (name, lambda k, i, table=table: table[k][i]) for name, table in tables.items()}
-    methods[f"ours (pruned, {PARTICLES} particles)"] = ("ours", pruned)
+    methods[f"{TUNED} (pruned, {PARTICLES} particles)"] = (TUNED, pruned)
     everyone = range(len(files))
     folds = {}  # each fold: its (training recordings, scored recordings) pairs
     for test in names:
@@ -246,7 +282,7 @@ def main() -> None:
             report_methods[name][fold]["settings"] = sorted(picked)
 
     def margin(fold: str, key: str) -> float:
-        return report_methods["ours, nothing tuned"][fold][key] - report_methods["speed minima"][fold][key]
+        return report_methods[UNTUNED][fold][key] - report_methods["speed minima"][fold][key]
 
     report = {
         "recordings": len(files),
@@ -254,17 +290,19 @@ def main() -> None:
         "rate_hz": RATE,
         "methods": report_methods,
         "ours_minus_speed_minima": {
-            fold: {key: margin(fold, key) for key in ("f1_0.1", "f1_0.2")} for fold in report_methods["ours"]
+            fold: {key: margin(fold, key) for key in ("f1_0.1", "f1_0.2")} for fold in report_methods[UNTUNED]
         },
         "long_recording": long_recording(demos[:LONG_RUNS]),
     }
+    if args.plot:
+        plot_scores(report_methods, args.plot)
     if args.json:
         print(json.dumps(report, indent=2))
         return
     table = Table(title=f"Segmentation of {len(files)} recordings: F1 +-0.1 / +-0.2 s, settings held out")
     table.add_column("method")
-    for fold in report_methods["ours"]:  # "subject 2 (settings from subject 1)" -> "subject 2 (from 1)"
-        table.add_column(re.sub(r"settings from subjects? ", "from ", fold), justify="right")
+    for fold in report_methods[UNTUNED]:
+        table.add_column(short_fold(fold), justify="right")
     table.add_column("Hausdorff (s, all)", justify="right")
     table.add_column("s / recording", justify="right")
     for name, rows in report_methods.items():

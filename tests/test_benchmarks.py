@@ -81,14 +81,16 @@ def test_viewer_benchmark_reports_its_cost_beside_the_run():
 
 
 @pytest.mark.slow
-def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings):
-    report = run_benchmark("segmentation.py", "--data", str(shared_recordings))
+def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings, tmp_path):
+    plot = tmp_path / "segmentation.png"
+    report = run_benchmark("segmentation.py", "--data", str(shared_recordings), "--plot", str(plot))
+    assert plot.read_bytes().startswith(b"\x89PNG")
     assert report["recordings"] == 15
     methods = report["methods"]
     assert set(methods) == {
         "ours, nothing tuned",
-        "ours",
-        "ours (pruned, 50 particles)",
+        "ours, tuned on labels",
+        "ours, tuned on labels (pruned, 50 particles)",
         "speed minima",
         "ruptures Pelt (linear)",
         "ruptures Dynp (linear)",
