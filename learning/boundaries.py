@@ -39,9 +39,9 @@ def fold_minor_movements(
     over. They are real motion, but no building block: a reach's or a carry's peak speed is several times
     theirs. ``boundaries`` are sample indices of ``speed``."""
     boundaries, models = list(boundaries), list(models)
+    peaks = [float(speed[boundaries[j] : boundaries[j + 1]].max()) for j in range(len(models))]
     k = 0
     while k < len(models) and len(models) > 1:
-        peaks = [float(speed[boundaries[j] : boundaries[j + 1]].max()) for j in range(len(models))]
         neighbours = [j for j in (k - 1, k + 1) if 0 <= j < len(models)]
         moving = [peaks[j] for j in neighbours if not models[j].hold]
         if models[k].hold or not moving or peaks[k] >= MINOR_MOVEMENT * max(moving):
@@ -52,8 +52,9 @@ def fold_minor_movements(
             models[k] = models[holds[0]]  # part of the pause: merged with it below
             k += 1
         else:  # the neighbouring movements meet in it (the boundary moves to their turning point later)
-            del boundaries[k + 1 if k == 0 else k]
-            del models[k]
+            taker = k + 1 if k == 0 else k - 1
+            peaks[taker] = max(peaks[taker], peaks[k])
+            del boundaries[k + 1 if k == 0 else k], models[k], peaks[k]
     return np.array(boundaries), models
 
 

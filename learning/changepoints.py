@@ -172,6 +172,10 @@ class JointModel:
         """(signal index, model) of each signal this model observes."""
         return [(s, part) for s, part in enumerate(self.parts) if part is not None]
 
+    def min_samples(self, rate: float) -> int:
+        """The shortest segment of this model (samples at ``rate``): the longest minimum of its parts."""
+        return max(samples(part.min_length, rate) for _, part in self.observed())
+
     @classmethod
     def of(cls, model: SegmentModel) -> JointModel:
         """The model of a single signal."""
@@ -344,6 +348,11 @@ def length_prior(n_samples: int, rate: float, prior: SegmentationPrior) -> tuple
     return log_g, log_survival
 
 
+def combined_evidence(evidences: list[np.ndarray], model_prior: np.ndarray) -> np.ndarray:
+    """log P(y[j:t] as one segment) (T+1, T+1): the models' evidences summed with their prior."""
+    return logsumexp(_stacked(evidences, model_prior), axis=0)
+
+
 def _stacked(evidences: list[np.ndarray], model_prior: np.ndarray) -> np.ndarray:
     """log P(y[j:t], model q) (Q, T+1, T+1)."""
     return np.stack(evidences) + model_prior[:, None, None]
@@ -458,9 +467,7 @@ def pruned_map_segmentation(
         for s, part in model.observed()
     }
     cumulative = [_second_moments(y) for y in signals]
-    minimum_lengths = np.array(
-        [max(samples(part.min_length, rate) for _, part in model.observed()) for model in models]
-    )
+    minimum_lengths = np.array([model.min_samples(rate) for model in models])
     log_g, log_survival = length_prior(n_samples, rate, lengths)
     # log P(a segment lasts at least n samples): 0 up to the minimum length.
     log_ongoing = np.where(np.isfinite(log_survival), log_survival, 0.0)
@@ -526,7 +533,7 @@ def change_probabilities(
 ) -> tuple[np.ndarray, float, np.ndarray]:
     """Posterior probability of a change point at each sample (forward-backward), the log marginal
     likelihood, and the backward messages Q (log P(y[t:] | change point at t))."""
-    combined = logsumexp(_stacked(evidences, model_prior), axis=0)
+    combined = combined_evidence(evidences, model_prior)
     n_samples = combined.shape[0] - 1
     forward = _forward(combined, log_g)
     backward = _backward(combined, log_g, log_survival)
@@ -545,7 +552,7 @@ def sample_segmentations(
     seed: int,
 ) -> list[np.ndarray]:
     """Exact samples of the change points from the posterior (backward filtering, forward sampling)."""
-    combined = logsumexp(_stacked(evidences, model_prior), axis=0)
+    combined = combined_evidence(evidences, model_prior)
     n_samples = combined.shape[0] - 1
     backward = _backward(combined, log_g, log_survival)
     rng = np.random.default_rng(seed)

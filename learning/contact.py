@@ -45,14 +45,8 @@ class ContactMarkers:
     def __post_init__(self) -> None:
         if not (self.object is None or isinstance(self.object, str)):
             raise InputError(f"ContactMarkers.object must be a marker name or None, got {self.object!r}")
-        if not (
-            self.grip is None
-            or (
-                isinstance(self.grip, tuple)
-                and len(self.grip) == 2
-                and all(isinstance(m, str) for m in self.grip)
-            )
-        ):
+        pair = isinstance(self.grip, tuple) and len(self.grip) == 2
+        if not (self.grip is None or (pair and all(isinstance(marker, str) for marker in self.grip))):
             raise InputError(f"ContactMarkers.grip must be two marker names or None, got {self.grip!r}")
 
 

@@ -17,7 +17,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.special import logsumexp
 
 from besman.learning.boundaries import fold_minor_movements, merge_holds, movement_onsets, turning_points
 from besman.learning.changepoints import (
@@ -27,6 +26,7 @@ from besman.learning.changepoints import (
     SegmentationPrior,
     SegmentModel,
     change_probabilities,
+    combined_evidence,
     joint_evidences,
     length_prior,
     log_marginal_likelihood,
@@ -175,7 +175,7 @@ def segment(
     else:
         extra, notes = [], []
     joint = joint_models(models, extra)
-    shortest = min(max(samples(part.min_length, rate) for _, part in model.observed()) for model in joint)
+    shortest = min(model.min_samples(rate) for model in joint)
     if len(values) < shortest:
         raise DemonstrationError(
             f"{demo.source or 'demonstration'}: the recording lasts {demo.duration:.2f} s, shorter than the "
@@ -203,7 +203,7 @@ def segment(
         if posterior:
             probability, log_evidence, _ = change_probabilities(evidences, log_g, log_survival, model_prior)
         elif log_evidence is None:
-            combined = logsumexp(np.stack(evidences) + model_prior[:, None, None], axis=0)
+            combined = combined_evidence(evidences, model_prior)
             log_evidence = log_marginal_likelihood(combined, log_g, log_survival)
     boundary_times = np.r_[signal_times, demo.times[-1]][points]
     boundary_times[1:-1] -= 0.5 / rate
