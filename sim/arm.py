@@ -85,7 +85,8 @@ class Arm:
 
     def site_path(self, joint_positions: np.ndarray) -> np.ndarray:
         """Site positions (K, 3) along configurations (K, dofs)."""
-        return np.array([self._pose_scratch(q).site_xpos[self._site_id] for q in joint_positions])
+        # Copies: the scratch data's rows are overwritten by the next configuration.
+        return np.array([self._pose_scratch(q).site_xpos[self._site_id].copy() for q in joint_positions])
 
     # -- inverse kinematics --------------------------------------------------------------------------------
 
@@ -128,6 +129,11 @@ class Arm:
         return ["/".join(model.body(b).name for b in pair) for pair in bodies[found]]
 
     # -- limits --------------------------------------------------------------------------------------------
+
+    def limit_margin(self, joint_positions: np.ndarray) -> float:
+        """The smallest distance of any joint from a limit, as a fraction of its range (over all rows)."""
+        q = np.asarray(joint_positions)
+        return float((np.minimum(q - self.lower, self.upper - q) / (self.upper - self.lower)).min())
 
     def slowdown(
         self, positions: np.ndarray, velocities: np.ndarray, accelerations: np.ndarray, period: float

@@ -17,7 +17,7 @@ from dataclasses import astuple, dataclass, fields
 import numpy as np
 
 from besman.sim.arm import Arm
-from besman.sim.primitives import point_to_point, straight_line, top_down
+from besman.sim.primitives import point_to_point, shaped, straight_line, top_down
 from besman.sim.references import DEFAULT_SETTINGS, ReferenceSettings, at_rest, joint_reference
 from besman.sim.world import SHELF, TABLE, GraspableObject
 from besman.skills import MovementPrimitive, Trajectory
@@ -110,7 +110,7 @@ def plan_leg(
         orientation = top_down(yaw)
         configurations = _pose_configurations(arm, start, positions, orientation, allowed)
         if configurations is not None:
-            bound = min(_clearance(arm, configurations[0]), _clearance(arm, configurations[1]))
+            bound = min(arm.limit_margin(configurations[0]), arm.limit_margin(configurations[1]))
             candidates.append((bound, index, orientation, configurations))
     best, best_index = None, len(GRASP_YAWS)
     for bound, index, orientation, configurations in sorted(candidates, key=lambda c: (-c[0], c[1])):
@@ -120,11 +120,6 @@ def plan_leg(
         if leg is not None and (best is None or (leg.clearance, -index) > (best.clearance, -best_index)):
             best, best_index = leg, index
     return best
-
-
-def _clearance(arm: Arm, joints: np.ndarray) -> float:
-    """The smallest distance of any joint from a limit, as a fraction of its range (over all rows)."""
-    return float((np.minimum(joints - arm.lower, arm.upper - joints) / (arm.upper - arm.lower)).min())
 
 
 def _pose_configurations(
@@ -174,7 +169,7 @@ def _build_leg(
     if not straight or any(arm.collisions(q, allowed) for q in joints[:: max(1, len(joints) // 20)]):
         return None
     ends = [configurations[0], *(reference.positions[-1] for reference in references)]
-    return _Leg(tuple(ends), tuple(primitives), references, _clearance(arm, joints))
+    return _Leg(tuple(ends), tuple(primitives), references, arm.limit_margin(joints))
 
 
 def site_path(arm: Arm, reference: Trajectory, samples: int = 20) -> np.ndarray:
@@ -225,9 +220,12 @@ def plan_pick(
     object_xy,
     plan: PickPlacePlan,
     settings: ReferenceSettings = DEFAULT_SETTINGS,
+    approach: MovementPrimitive | None = None,
 ) -> PickMotions:
     """Motions that grasp ``item`` standing on the table at ``object_xy`` from the configuration ``start``
-    and lift it to carrying height."""
+    and lift it to carrying height. The approach is a point-to-point move, or the joint-space primitive
+    ``approach`` (a learned reach) moved to this approach's end points
+    (:func:`~besman.sim.primitives.shaped`)."""
     object_xy = np.asarray(object_xy, dtype=float)
     grasp_z, carry_z, _ = heights(item, plan)
     leg = plan_leg(
@@ -245,7 +243,10 @@ def plan_pick(
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down grasp of the object")
-    approach = point_to_point("approach", start, leg.configurations[0], arm)
+    if approach is None:
+        approach = point_to_point("approach", start, leg.configurations[0], arm)
+    else:
+        approach = shaped(approach, "approach", start, leg.configurations[0], arm)
     return PickMotions(approach, *leg.primitives, leg.configurations[-1])
 
 
@@ -256,9 +257,11 @@ def plan_place(
     place_xy,
     plan: PickPlacePlan,
     settings: ReferenceSettings = DEFAULT_SETTINGS,
+    transport: MovementPrimitive | None = None,
 ) -> PlaceMotions:
     """Motions that carry ``item`` from the configuration ``start`` (holding it at carrying height) to
-    ``place_xy`` on the shelf, set it down and retreat."""
+    ``place_xy`` on the shelf, set it down and retreat. The transport is a point-to-point move, or the
+    joint-space primitive ``transport`` (a learned carry) moved to its end points."""
     place_xy = np.asarray(place_xy, dtype=float)
     _, carry_z, place_z = heights(item, plan)
     leg = plan_leg(
@@ -272,7 +275,10 @@ def plan_place(
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down placement at the target")
-    transport = point_to_point("transport", start, leg.configurations[0], arm, plan.transport_time)
+    if transport is None:
+        transport = point_to_point("transport", start, leg.configurations[0], arm, plan.transport_time)
+    else:
+        transport = shaped(transport, "transport", start, leg.configurations[0], arm)
     # The joint-space transport cannot run into a joint limit, but its hand path must stay over the shelf.
     reference = joint_reference(arm, transport, at_rest(start), settings)
     lowest = float(site_path(arm, reference, 40)[:, 2].min())

@@ -23,6 +23,7 @@ error, simulated time, largest contact force on the box, and which step failed a
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 import mujoco
@@ -153,14 +154,50 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
             if monitor.highest < TABLE.height + item.half_height + 0.05:
                 return _failure(world, motion.name, "the box was not lifted", monitor)
             monitor.grasped = True
-    for _ in range(round(0.3 / world.model.opt.timestep)):  # let the box settle
+    placed = settle_and_measure(world, item, place_xy, monitor.update)
+    violations = tuple(limit_violations(executor.log, executor))
+    return PickPlaceDetail(
+        placed.success,
+        True,
+        placed.error,
+        placed.tilt_degrees,
+        float(world.data.time),
+        monitor.max_force,
+        None if placed.success else "place",
+        placed.message,
+        violations,
+    )
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a released box came to rest: success (upright on the shelf within 2 cm of the target),
+    horizontal error (m), tilt and a message."""
+
+    success: bool
+    error: float
+    tilt_degrees: float
+    message: str
+
+
+SETTLE_TIME = 0.3  # s the box is left to settle after its release before it is measured
+PLACE_TOLERANCE = 0.02  # m
+
+
+def settle_and_measure(
+    world: World, item: GraspableObject, place_xy, observe: Callable[[], None] | None = None
+) -> Placement:
+    """Lets the released ``item`` settle for :data:`SETTLE_TIME` (``observe`` after each step) and judges
+    where it stands against the target ``place_xy``."""
+    for _ in range(round(SETTLE_TIME / world.model.opt.timestep)):
         mujoco.mj_step(world.model, world.data)
-        monitor.update()
+        if observe is not None:
+            observe()
     pose = world.object_pose(item.name)
-    error = float(np.linalg.norm(pose.position[:2] - place_xy))
+    error = float(np.linalg.norm(pose.position[:2] - np.asarray(place_xy, dtype=float)))
     tilt = math.degrees(math.acos(min(1.0, abs(pose.rotation[2, 2]))))
     on_shelf = abs(pose.position[2] - (SHELF.height + item.half_height)) < 0.01
-    success = bool(error <= 0.02 and tilt < 10.0 and on_shelf)
+    success = bool(error <= PLACE_TOLERANCE and tilt < 10.0 and on_shelf)
     message = (
         "placed"
         if success
@@ -169,18 +206,7 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
             + ("" if on_shelf else ", off the shelf")
         )
     )
-    violations = tuple(limit_violations(executor.log, executor))
-    return PickPlaceDetail(
-        success,
-        True,
-        error,
-        tilt,
-        float(world.data.time),
-        monitor.max_force,
-        None if success else "place",
-        message,
-        violations,
-    )
+    return Placement(success, error, tilt, message)
 
 
 class _BoxMonitor:

@@ -5,11 +5,13 @@
 - :func:`straight_line` - a joint-space DMP that moves the arm's site along a straight line at a
   constant orientation: inverse kinematics at knots along the line, imitated by the DMP.
 - :func:`cartesian_point_to_point` - a Cartesian DMP of a site to a pose (the executor converts it).
+- :func:`shaped` - a learned joint-space primitive moved to new end points, keeping its shape.
 - :func:`top_down` - the orientation of a hand pointing down.
 """
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -17,6 +19,7 @@ from scipy.interpolate import CubicSpline
 
 from besman.sim.arm import Arm
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, quaternion
+from besman.skills.errors import InputError
 from besman.skills.transformation import minimum_jerk
 
 
@@ -73,6 +76,26 @@ def straight_line(
     # A straight move starts and ends at rest, exactly at its knots.
     dmp.configure(start=path[0], goal=path[-1], start_velocity=0.0, start_acceleration=0.0, goal_velocity=0.0)
     return _joint_primitive(dmp, name, arm)
+
+
+def shaped(
+    shape: MovementPrimitive, name: str, start: np.ndarray, goal: np.ndarray, arm: Arm
+) -> MovementPrimitive:
+    """A copy of the joint-space primitive ``shape`` from ``start`` to ``goal`` (at rest at both ends) with
+    its own forcing term and duration: a learned movement between new end points. The DMP's trajectory is
+    the moving goal between the end points plus the forcing term's response, which does not depend on them
+    (:mod:`besman.skills.transformation`), so the learned deviation from the direct path is kept."""
+    if shape.space != "joint" or shape.dmp.n_dims != arm.dofs:
+        raise InputError(
+            f"primitive {shape.name!r} must be a joint-space primitive of {arm.dofs} joints "
+            f"({', '.join(arm.joints)}) to be shaped"
+        )
+    primitive = copy.deepcopy(shape)
+    primitive.name = name
+    primitive.dmp.configure(
+        start=start, start_velocity=0.0, start_acceleration=0.0, goal=goal, goal_velocity=0.0
+    )
+    return primitive
 
 
 def cartesian_point_to_point(

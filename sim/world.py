@@ -13,6 +13,7 @@ Objects are free bodies; their poses are (x, y, z) plus a (w, x, y, z) quaternio
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import mujoco
@@ -85,6 +86,17 @@ class World:
         self.objects = {item.name: item for item in objects}
         self.surfaces = {surface.name: surface for surface in surfaces}
         self.reset()
+
+    def fork(self) -> World:
+        """A world on the same model with a copy of this one's simulation state, to try motions out in
+        without touching this one."""
+        other = copy.copy(self)
+        other.data = copy.copy(self.data)
+        return other
+
+    def home(self, joint_indices: np.ndarray) -> np.ndarray:
+        """The positions of qpos entries ``joint_indices`` in the robot's home keyframe."""
+        return self.model.key(self.robot.keyframe).qpos[joint_indices].copy()
 
     def reset(self, keyframe: str | None = None) -> None:
         """Resets the simulation to a keyframe (default: the robot's home) with objects where they were

@@ -57,17 +57,29 @@ class TreeFileError(BesmanError):
     """A tree file is invalid; the message starts with ``file:line: path:``."""
 
 
-def load_tree(path: str | Path) -> py_trees.behaviour.Behaviour:
-    """Builds the tree of a file; a :class:`TreeFileError` names the file, line and path of any problem."""
-    return _Builder().file(Path(path), remap={}, stack=())
+def load_tree(path: str | Path, *, pool: str | Path | None = None) -> py_trees.behaviour.Behaviour:
+    """Builds the tree of a file; a :class:`TreeFileError` names the file, line and path of any problem.
+    ``pool`` (a pool directory) replaces every pool the file names (``besman run --pool``)."""
+    return _Builder(_pool_override(pool)).file(Path(path), remap={}, stack=())
 
 
-def loads_tree(text: str, *, base: str | Path = ".", source: str = "<text>") -> py_trees.behaviour.Behaviour:
-    """Builds a tree from YAML text (includes are relative to ``base``)."""
-    return _Builder().document(text, Path(base) / source, remap={}, stack=())
+def loads_tree(
+    text: str, *, base: str | Path = ".", source: str = "<text>", pool: str | Path | None = None
+) -> py_trees.behaviour.Behaviour:
+    """Builds a tree from YAML text (includes are relative to ``base``; ``pool`` as for :func:`load_tree`)."""
+    return _Builder(_pool_override(pool)).document(text, Path(base) / source, remap={}, stack=())
+
+
+def _pool_override(pool: str | Path | None) -> Path | None:
+    if pool is not None and not Path(pool).is_dir():
+        raise TreeFileError(f"--pool {pool}: no such pool directory")
+    return None if pool is None else Path(pool)
 
 
 class _Builder:
+    def __init__(self, pool: Path | None = None) -> None:
+        self.pool = pool  # replaces every pool the files name
+
     def file(self, path: Path, remap: Mapping[str, str], stack: tuple[Path, ...]):
         resolved = path.resolve()
         if resolved in stack:
@@ -290,8 +302,8 @@ class _Builder:
             except ValueError as error:
                 raise self._error(node, path, where, str(error)) from None
             return primitive
-        if kind == "pool" and ":" not in text:  # a pool directory, relative to the tree file
-            directory = path.parent / text
+        if kind == "pool" and (self.pool is not None or ":" not in text):
+            directory = self.pool or path.parent / text  # a pool directory, relative to the tree file
             if not directory.is_dir():
                 raise self._error(node, path, where, f"no pool directory {str(directory)!r}")
             return SkillTemplatePool(directory)

@@ -7,6 +7,7 @@ Each subtree keeps its blackboard in one skill namespace; its planning leaf writ
   check the grasp; retried from fresh perception when it fails.
 - :func:`place` - plan, transport and set down while a guard checks that the object stays in the hand, open,
   retreat, check that the object is at the target.
+- :func:`return_home` - the learned return to the robot's home configuration.
 - :func:`grasp_then_place` - the two, retried: if the object slips out of the hand, the retry finds it not
   grasped and grasps it again where it now lies.
 
@@ -17,6 +18,7 @@ The factories record how they were called (``besman_spec``), so tree files can n
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import py_trees
 
@@ -25,7 +27,7 @@ from besman.skills.errors import InputError
 from besman.trees.base import RoleBehaviour
 from besman.trees.conditions import ObjectAt, ObjectGrasped
 from besman.trees.leaves import ExecutePrimitive, Gripper
-from besman.trees.manipulation import DEFAULT_PLAN, PerceiveObject, PlanGrasp, PlanPlace
+from besman.trees.manipulation import DEFAULT_PLAN, PerceiveObject, PlanGrasp, PlanPlace, PlanReturn
 
 
 def grasp(
@@ -36,8 +38,12 @@ def grasp(
     attempts: int = 2,
     plan: PickPlacePlan = DEFAULT_PLAN,
     remap: Mapping[str, str] | None = None,
+    pool: Mapping[str, Any] | None = None,
+    template: str | None = None,
+    refine_above: float | None = None,
 ) -> py_trees.behaviour.Behaviour:
-    """A subtree that grasps ``object`` and lifts it; up to ``attempts`` tries from fresh perception."""
+    """A subtree that grasps ``object`` and lifts it; up to ``attempts`` tries from fresh perception. With a
+    ``pool`` and a ``template``, the approach is the template's (see :class:`PlanGrasp`)."""
     remap = _checked(name, remap or {}, PlanGrasp)
     primitives = PlanGrasp.role_keys(namespace, remap)
     steps = py_trees.composites.Sequence(
@@ -45,7 +51,14 @@ def grasp(
         memory=True,
         children=[
             PerceiveObject("perceive", object=object, **_wiring(PerceiveObject, namespace, remap)),
-            PlanGrasp("plan grasp", object=object, plan=plan, namespace=namespace, remap=remap),
+            PlanGrasp(
+                "plan grasp",
+                object=object,
+                plan=plan,
+                namespace=namespace,
+                remap=remap,
+                **_learned(pool, template, refine_above),
+            ),
             Gripper("open", action="open"),
             ExecutePrimitive("approach", remap={"primitive": primitives["approach"]}),
             ExecutePrimitive("descend", remap={"primitive": primitives["descend"]}),
@@ -62,6 +75,7 @@ def grasp(
         "namespace": namespace,
         "attempts": attempts,
         "remap": remap,
+        **_learned_spec(pool, template, refine_above),
     }
     return tree
 
@@ -74,8 +88,12 @@ def place(
     target: str | None = None,
     plan: PickPlacePlan = DEFAULT_PLAN,
     remap: Mapping[str, str] | None = None,
+    pool: Mapping[str, Any] | None = None,
+    template: str | None = None,
+    refine_above: float | None = None,
 ) -> py_trees.behaviour.Behaviour:
-    """A subtree that puts the held ``object`` down at the target (role ``target``, or the key ``target``)."""
+    """A subtree that puts the held ``object`` down at the target (role ``target``, or the key ``target``).
+    With a ``pool`` and a ``template``, the transport is the template's (see :class:`PlanPlace`)."""
     own_remap = _checked(name, remap or {}, PlanPlace)
     remap = own_remap | ({"target": target} if target is not None else {})
     primitives = PlanPlace.role_keys(namespace, remap)
@@ -83,7 +101,14 @@ def place(
         name,
         memory=True,
         children=[
-            PlanPlace("plan place", object=object, plan=plan, namespace=namespace, remap=remap),
+            PlanPlace(
+                "plan place",
+                object=object,
+                plan=plan,
+                namespace=namespace,
+                remap=remap,
+                **_learned(pool, template, refine_above),
+            ),
             _while_holding("transport", object, primitives["transport"]),
             _while_holding("set down", object, primitives["place"]),
             Gripper("release", action="open"),
@@ -98,6 +123,7 @@ def place(
         "namespace": namespace,
         "target": target,
         "remap": own_remap,
+        **_learned_spec(pool, template, refine_above),
     }
     return tree
 
@@ -131,6 +157,50 @@ def grasp_then_place(
         "attempts": attempts,
     }
     return tree
+
+
+def return_home(
+    name: str = "return home",
+    *,
+    pool: Mapping[str, Any],
+    template: str,
+    namespace: str = "return",
+    target: str = "/task/place",
+) -> py_trees.behaviour.Behaviour:
+    """A subtree that plans the template's return to the home configuration (tau: the place ``target``)
+    and executes it."""
+    keys = PlanReturn.role_keys(namespace, {"target": target})
+    tree = py_trees.composites.Sequence(
+        name,
+        memory=True,
+        children=[
+            PlanReturn(
+                "plan return", pool=pool, template=template, namespace=namespace, remap={"target": target}
+            ),
+            ExecutePrimitive("return", remap={"primitive": keys["home"]}),
+        ],
+    )
+    tree.besman_spec = {
+        "type": "ReturnHome",
+        "name": name,
+        "namespace": namespace,
+        "target": target,
+        **_learned_spec(pool, template, None),
+    }
+    return tree
+
+
+def _learned(pool, template, refine_above) -> dict:
+    """A planning leaf's learned-motion arguments (none for the planned motions)."""
+    return {} if pool is None else {"pool": pool, "template": template, "refine_above": refine_above}
+
+
+def _learned_spec(pool, template, refine_above) -> dict:
+    """How a subtree's learned motion is written back to a tree file (the pool by its directory)."""
+    if pool is None:
+        return {}
+    spec = {"pool": str(getattr(pool, "directory", pool)), "template": template}
+    return spec if refine_above is None else {**spec, "refine_above": refine_above}
 
 
 def _checked(subtree: str, remap: Mapping[str, str], planner: type[RoleBehaviour]) -> dict[str, str]:

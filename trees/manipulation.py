@@ -4,6 +4,11 @@
 - :class:`PlanGrasp` reads ``object_position`` and writes the ``approach``, ``descend`` and ``lift``
   primitives planned from the robot's current commanded state (:func:`besman.sim.manipulation.plan_pick`).
 - :class:`PlanPlace` reads the ``target`` (x, y) and writes ``transport``, ``place`` and ``retreat``.
+- :class:`PlanReturn` writes ``home``, a learned return to the robot's home configuration.
+
+The approach, the transport and the return can come from skill templates learned from people
+(:mod:`besman.learning.pipeline`), instantiated for the tau the leaf perceives and refined online where the
+template is unsure.
 
 The subtrees that use them are in :mod:`besman.trees.idioms`.
 """
@@ -11,12 +16,16 @@ The subtrees that use them are in :mod:`besman.trees.idioms`.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from py_trees.common import Access, Status
 
+from besman.learning.online import Refinement, refine_online, uncertainty
+from besman.sim.blocks import BlockStart, snapshot
 from besman.sim.manipulation import PickPlacePlan, PlanningError, plan_pick, plan_place
+from besman.sim.primitives import shaped
+from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
 
 DEFAULT_PLAN = PickPlacePlan()
@@ -44,11 +53,18 @@ class PerceiveObject(SimulationBehaviour):
 
 class _Plan(SimulationBehaviour):
     """A planning leaf: in one tick, plans from the robot's commanded configuration and the (x, y) in its
-    ``source`` role with its ``planner``, and writes the primitives to its other roles."""
+    ``source`` role with its ``planner``, and writes the primitives to its other roles.
+
+    With a ``pool`` and a ``template`` name, the big move (approach or transport) is the template's
+    instance for the task tau the leaf perceives - a learned primitive moved to the planned end points -
+    instead of a point-to-point move. With ``refine_above`` as well, an instance whose template is less sure
+    of tau than that (:func:`besman.learning.online.uncertainty`) is first refined by at most 25 rollouts in
+    a copy of the world (:func:`besman.learning.online.refine_online`)."""
 
     source = ""
+    block = ""
     planner: ClassVar = None
-    parameters: ClassVar = {"object": "str"}
+    parameters: ClassVar = {"object": "str", "pool": "pool", "template": "str", "refine_above": "float>=0"}
 
     def __init__(
         self,
@@ -56,17 +72,31 @@ class _Plan(SimulationBehaviour):
         *,
         object: str,
         plan: PickPlacePlan = DEFAULT_PLAN,
+        pool: Mapping[str, Any] | None = None,
+        template: str | None = None,
+        refine_above: float | None = None,
         namespace: str = "",
         remap: Mapping[str, str] | None = None,
     ):
         super().__init__(name, namespace=namespace, remap=remap)
         self.object, self.plan = object, plan
+        self.pool, self.template, self.refine_above = pool, template, refine_above
+        _check_template(name, pool, template)
+        if refine_above is not None and pool is None:
+            raise InputError(f"{name}: refine_above needs a pool and a template")
+        self.refinement: Refinement | None = None  # the last online refinement (for feedback and tests)
         for role in self.roles:
             self.use(role)
 
     @property
     def outputs(self) -> tuple[str, ...]:
         return tuple(role for role in self.roles if role != self.source)
+
+    def tau(self, where: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def after(self, motions) -> tuple:
+        raise NotImplementedError
 
     def update(self) -> Status:
         executor = self.executor
@@ -75,23 +105,54 @@ class _Plan(SimulationBehaviour):
             self.feedback_message = f"no object {self.object!r} in the world"
             return Status.FAILURE
         where = np.asarray(self.blackboard.get(self.source), dtype=float)[:2]
+        self.refinement, template, shape, note = None, None, None, ""
         try:
-            motions = type(self).planner(
-                executor.arm, executor.position, item, where, self.plan, executor.reference_settings
-            )
-        except PlanningError as error:
+            if self.pool is not None:
+                template = self.pool[self.template]
+                tau = self.tau(where)
+                shape = template.instantiate(tau)
+            motions = self._planned(where, item, shape)
+            if template is not None and self.refine_above is not None:
+                spread = uncertainty(template, tau)
+                if spread > self.refine_above:
+                    moves = getattr(motions, self.outputs[0])
+                    start = BlockStart(
+                        self.block,
+                        tau,
+                        snapshot(executor.world),
+                        executor.position.copy(),
+                        moves.dmp.goal.copy(),
+                        self.after(motions),
+                        where,
+                    )
+                    self.refinement = refine_online(executor.world, start, template, tau)
+                    motions = self._planned(where, item, self.refinement.primitive)
+                    note = (
+                        f"; refined online (spread {spread:.2f}): {self.refinement.rollouts} rollouts, "
+                        "reward "
+                        f"{self.refinement.mean_reward:.3f} -> {self.refinement.best_reward:.3f}"
+                    )
+        except (PlanningError, ValueError) as error:
             self.feedback_message = str(error)
             return Status.FAILURE
         for role in self.outputs:
             self.blackboard.set(role, getattr(motions, role), overwrite=True)
-        self.feedback_message = "planned " + ", ".join(self.outputs)
+        learned = f" ({self.outputs[0]} from template {self.template!r})" if template is not None else ""
+        self.feedback_message = "planned " + ", ".join(self.outputs) + learned + note
         return Status.SUCCESS
+
+    def _planned(self, where: np.ndarray, item, shape):
+        executor = self.executor
+        return type(self).planner(
+            executor.arm, executor.position, item, where, self.plan, executor.reference_settings, shape
+        )
 
 
 class PlanGrasp(_Plan):
     """Plans approach, descend and lift for the object at ``object_position``."""
 
     source = "object_position"
+    block = "reach"
     planner = plan_pick
     roles: ClassVar = {
         "object_position": Access.READ,
@@ -100,11 +161,18 @@ class PlanGrasp(_Plan):
         "lift": Access.WRITE,
     }
 
+    def tau(self, where: np.ndarray) -> np.ndarray:
+        return where  # the reach's tau: the object's x, y
+
+    def after(self, motions) -> tuple:
+        return (motions.descend, "grasp", motions.lift)
+
 
 class PlanPlace(_Plan):
     """Plans transport, place and retreat to the ``target`` (x, y) from the current configuration."""
 
     source = "target"
+    block = "carry"
     planner = plan_place
     roles: ClassVar = {
         "target": Access.READ,
@@ -112,3 +180,57 @@ class PlanPlace(_Plan):
         "place": Access.WRITE,
         "retreat": Access.WRITE,
     }
+
+    def tau(self, where: np.ndarray) -> np.ndarray:
+        # The carry's tau: where the box was picked (the hand is above it, holding it) and the target.
+        hand = self.executor.arm.site_pose(self.executor.position).position
+        return np.r_[hand[:2], where]
+
+    def after(self, motions) -> tuple:
+        return (motions.place, "release", motions.retreat)
+
+
+class PlanReturn(SimulationBehaviour):
+    """Writes ``home``: the template's return to the robot's home configuration for the place ``target``
+    (its tau), moved to start where the arm is now."""
+
+    roles: ClassVar = {"target": Access.READ, "home": Access.WRITE}
+    parameters: ClassVar = {"pool": "pool", "template": "str"}
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        pool: Mapping[str, Any],
+        template: str,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ):
+        super().__init__(name, namespace=namespace, remap=remap)
+        _check_template(name, pool, template)
+        self.pool, self.template = pool, template
+        for role in self.roles:
+            self.use(role)
+
+    def update(self) -> Status:
+        executor = self.executor
+        arm = executor.arm
+        target = np.asarray(self.blackboard.get("target"), dtype=float)[:2]
+        try:
+            shape = self.pool[self.template].instantiate(target)
+            home = executor.world.home(arm.qpos_indices)
+            primitive = shaped(shape, "return", executor.position, home, arm)
+        except ValueError as error:
+            self.feedback_message = str(error)
+            return Status.FAILURE
+        self.blackboard.set("home", primitive, overwrite=True)
+        self.feedback_message = f"planned the return home from template {self.template!r}"
+        return Status.SUCCESS
+
+
+def _check_template(name: str, pool: Mapping[str, Any] | None, template: str | None) -> None:
+    if (pool is None) != (template is None):
+        raise InputError(f"{name}: a learned motion needs both a pool and a template name")
+    if pool is not None and template not in pool:
+        where = getattr(pool, "directory", "the pool")
+        raise InputError(f"{name}: {where} has no template {template!r} (has: {', '.join(pool) or 'none'})")

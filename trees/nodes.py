@@ -22,9 +22,9 @@ import py_trees
 
 from besman.trees.base import RoleBehaviour
 from besman.trees.conditions import AtPose, ObjectAt, ObjectGrasped
-from besman.trees.idioms import grasp, grasp_then_place, place
+from besman.trees.idioms import grasp, grasp_then_place, place, return_home
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
-from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanPlace
+from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanPlace, PlanReturn
 from besman.trees.timing import SimTimeout, Wait
 
 WIRING = {"namespace": "str", "remap": "keys"}
@@ -115,6 +115,9 @@ def _decorator(cls) -> NodeType:
     return NodeType(lambda name, child: cls(name, child), {}, "one")
 
 
+# The parameters of a subtree whose big move may come from a skill template (see trees.manipulation._Plan).
+_LEARNED = {"pool": "pool", "template": "str", "refine_above": "float>=0"}
+
 NODE_TYPES: dict[str, NodeType] = {
     "Sequence": NodeType(
         lambda name, memory, children: py_trees.composites.Sequence(name, memory, children),
@@ -163,13 +166,21 @@ NODE_TYPES: dict[str, NodeType] = {
             PerceiveObject,
             PlanGrasp,
             PlanPlace,
+            PlanReturn,
         )
     },
     "Grasp": subtree(
-        grasp, {"object": "str", "namespace": "str", "attempts": "int>=1", "remap": "keys"}, PlanGrasp
+        grasp,
+        {"object": "str", "namespace": "str", "attempts": "int>=1", "remap": "keys", **_LEARNED},
+        PlanGrasp,
     ),
     "Place": subtree(
-        place, {"object": "str", "namespace": "str", "target": "str", "remap": "keys"}, PlanPlace
+        place,
+        {"object": "str", "namespace": "str", "target": "str", "remap": "keys", **_LEARNED},
+        PlanPlace,
+    ),
+    "ReturnHome": subtree(
+        return_home, {"pool": "pool", "template": "str", "namespace": "str", "target": "str"}, None
     ),
     "GraspThenPlace": subtree(
         grasp_then_place, {"object": "str", "target": "str", "attempts": "int>=1"}, None

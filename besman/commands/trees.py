@@ -83,7 +83,12 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,))
-    summary, viewers = tabletop(args, args.file, _parse_sets(args.set), args.log)
+    tree = args.file
+    if args.pool is not None:  # the file's pools replaced: the tree is built here and logged as built
+        from besman.trees import load_tree
+
+        tree = load_tree(args.file, pool=args.pool)
+    summary, viewers = tabletop(args, tree, _parse_sets(args.set), args.log)
     _print_summary(summary, args.json)
     return serve(viewers, 0 if summary["status"] == "SUCCESS" else 1)
 
@@ -133,6 +138,9 @@ def register(commands) -> None:
     run.add_argument("--seed", type=int, default=None, help="draws object and place when not set")
     run.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
+    run.add_argument(
+        "--pool", default=None, help="a skill template pool that replaces the pools the tree names"
+    )
     view_options(run)
     run.set_defaults(handler=_run)
 

@@ -1,0 +1,70 @@
+"""`besman learn`: from a folder of human recordings to a skill template pool that drives AILA."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def _roles(text: str) -> tuple[tuple[str, str], ...]:
+    pairs = []
+    for item in filter(None, text.split(",")):
+        block, _, label = item.partition("=")
+        if not label:
+            raise argparse.ArgumentTypeError(f"--roles takes BLOCK=LABEL,..., got {item!r}")
+        pairs.append((block.strip(), label.strip()))
+    return tuple(pairs)
+
+
+def _learn(args: argparse.Namespace) -> int:
+    from besman.learning.pipeline import LearnSettings, learn
+
+    settings = LearnSettings(
+        robot=args.robot,
+        tasks=args.tasks,
+        budget=args.budget,
+        seed=args.seed,
+        backend=args.backend,
+        n_blocks=args.blocks,
+        examples=tuple(args.examples),
+        roles=args.roles,
+    )
+    result = learn(args.demos, args.out, settings, force=args.force)
+    print(f"pool {result.pool}: templates {', '.join(result.templates)}")
+    for block, runs in result.refined.items():
+        refined = sum(run["outcome"]["success"] for run in runs)
+        retargeted = sum(run["start_outcome"]["success"] for run in runs)
+        print(f"  {block}: {len(runs)} training tasks, succeeded retargeted {retargeted}, refined {refined}")
+    print("figures: " + ", ".join(str(path) for path in result.figures), file=sys.stderr)
+    return 0
+
+
+def register(commands) -> None:
+    """Adds this module's commands to the parser's subcommands."""
+    learn = commands.add_parser(
+        "learn",
+        help="learn skill templates from human recordings (segment, label, imitate, retarget, refine, pool)",
+    )
+    learn.add_argument("--demos", required=True, help="a folder of recordings (.tsv, .csv, .npz)")
+    learn.add_argument("--out", required=True, help="the pool folder (resumed if a run was interrupted)")
+    learn.add_argument("--robot", default="aila", help="the robot (default: aila)")
+    learn.add_argument("--tasks", type=int, default=8, help="training tasks K per building block (default 8)")
+    learn.add_argument("--budget", type=int, default=48, help="rollouts per training task (default 48)")
+    learn.add_argument("--seed", type=int, default=0)
+    learn.add_argument("--backend", choices=("threads", "ray"), default="threads")
+    learn.add_argument("--blocks", type=int, default=6, help="building blocks to cluster into (default 6)")
+    learn.add_argument(
+        "--examples", nargs="+", default=[], metavar="FILE", help="annotated recordings: label by them (1-NN)"
+    )
+    learn.add_argument(
+        "--roles",
+        type=_roles,
+        default=(),
+        metavar="BLOCK=LABEL,...",
+        help="the labels of reach, carry and return (default: block4,5,6 clustered; approach_right, "
+        "move_obj_shelf, move_to_rest_down with --examples)",
+    )
+    learn.add_argument(
+        "--force", action="store_true", help="start over in a folder that holds something else"
+    )
+    learn.set_defaults(handler=_learn)

@@ -1,0 +1,97 @@
+"""The figures :func:`besman.learning.pipeline.learn` writes beside the pool.
+
+- ``segmentations.png``: each recording's hand speed, its segment boundaries, and the instances of AILA's
+  blocks shaded in their colours;
+- ``learning_curves.png``: per block, the best reward so far over the rollouts of each training task;
+- ``summary.png``: per block and training task, the retargeted primitive's reward before refinement and the
+  refined one (filled: the rollout succeeded).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from besman.learning.demonstration import Demonstration
+from besman.learning.figures import plt, save_png
+from besman.learning.labelling import DemonstrationSegment
+from besman.learning.preprocessing import smooth
+
+COLOURS = {"reach": "tab:blue", "carry": "tab:orange", "return": "tab:green"}
+
+
+def write_figures(
+    out: Path,
+    demos: list[Demonstration],
+    files: list[Path],
+    movements: list[list[DemonstrationSegment]],
+    blocks: dict[str, list[dict]],
+    refined: dict[str, list[dict]],
+) -> tuple[Path, ...]:
+    return (
+        _segmentations(out / "segmentations.png", demos, files, movements, blocks),
+        _curves(out / "learning_curves.png", refined),
+        _summary(out / "summary.png", refined),
+    )
+
+
+def _segmentations(path, demos, files, movements, blocks) -> Path:
+    figure, axes = plt.subplots(len(demos), 1, figsize=(10, 1.1 * len(demos) + 0.8), squeeze=False)
+    for row, (demo, file, per_demo) in enumerate(zip(demos, files, movements, strict=True)):
+        ax = axes[row, 0]
+        times = demo.times - demo.times[0]
+        speed = np.linalg.norm(np.gradient(smooth(demo, "Hand top").positions, demo.times, axis=0), axis=1)
+        ax.plot(times, speed, color="k", lw=0.8)
+        for s in per_demo:
+            ax.axvline(times[s.start], color="0.6", lw=0.5)
+        for block, instances in blocks.items():
+            for instance in instances:
+                if instance["file"] == file.name:
+                    ax.axvspan(
+                        times[instance["start"]], times[instance["end"]], color=COLOURS[block], alpha=0.3
+                    )
+        ax.set_ylabel(file.stem, rotation=0, ha="right", fontsize=7)
+        ax.set_yticks([])
+    axes[-1, 0].set_xlabel(
+        "time (s); hand speed, segment starts (grey), AILA's blocks: "
+        + ", ".join(f"{block} ({colour[4:]})" for block, colour in COLOURS.items())
+    )
+    figure.suptitle("Segmentation and the instances of each building block")
+    figure.tight_layout()
+    return save_png(figure, path)
+
+
+def _curves(path, refined) -> Path:
+    figure, axes = plt.subplots(1, len(refined), figsize=(4 * len(refined), 3.2), squeeze=False)
+    for ax, (block, runs) in zip(axes[0], refined.items(), strict=True):
+        for run in runs:
+            curve = np.array(run["curve"])
+            ax.plot(curve[:, 0], curve[:, 2], color=COLOURS[block], alpha=0.6, lw=1)
+        ax.set_title(f"{block}: {len(runs)} training tasks")
+        ax.set_xlabel("rollout")
+        ax.set_ylabel("best reward so far")
+    figure.tight_layout()
+    return save_png(figure, path)
+
+
+def _summary(path, refined) -> Path:
+    figure, axes = plt.subplots(1, len(refined), figsize=(4 * len(refined), 3.2), squeeze=False)
+    for ax, (block, runs) in zip(axes[0], refined.items(), strict=True):
+        k = np.arange(len(runs))
+        for offset, key, outcome, label in (
+            (-0.15, "start_reward", "start_outcome", "retargeted"),
+            (0.15, "reward", "outcome", "refined"),
+        ):
+            rewards = np.array([run[key] for run in runs])
+            success = np.array([run[outcome]["success"] for run in runs])
+            colour = COLOURS[block] if key == "reward" else "0.5"
+            ax.scatter(k[success] + offset, rewards[success], color=colour, label=label)
+            ax.scatter(k[~success] + offset, rewards[~success], facecolors="none", edgecolors=colour)
+        ax.set_title(block)
+        ax.set_xlabel("training task")
+        ax.set_ylabel("reward (filled: success)")
+        ax.legend(fontsize=7)
+    figure.suptitle("Before and after refinement by CMA-ES")
+    figure.tight_layout()
+    return save_png(figure, path)

@@ -1,0 +1,275 @@
+"""The learning pipeline from recordings to a pool: bad input refused before any work, a small real run, an
+interrupted run that resumes to the same pool, retargeting and shaping checked against their definitions,
+online refinement, and the learned tree on AILA."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import run_cli
+
+from besman.learning.online import MAX_ROLLOUTS, refine_online, uncertainty
+from besman.learning.pipeline import LearnError, LearnSettings, learn
+from besman.learning.retargeting import WorkspaceMap, fit_workspace_map, retarget
+from besman.sim import Executor, tabletop_world
+from besman.sim.blocks import Reward, prepare, rollout
+from besman.sim.primitives import point_to_point, shaped
+from besman.skills import DMP, CartesianDMP, MovementPrimitive, SkillTemplatePool
+
+ROOT = Path(__file__).resolve().parents[1]
+COMMITTED_POOL = ROOT / "examples" / "pools" / "pick_place"
+LEARNED_TREE = ROOT / "examples" / "trees" / "grasp_then_place_learned.yaml"
+SMALL = ("--tasks", "2", "--budget", "8")
+
+
+def _csv(path: Path, channels: dict[str, np.ndarray], rate: float = 60.0) -> Path:
+    times = np.arange(len(next(iter(channels.values())))) / rate
+    header = ["time"] + [f"{name}_{axis}" for name in channels for axis in "xyz"]
+    rows = np.column_stack([times, *channels.values()])
+    path.write_text(
+        ",".join(header) + "\n" + "\n".join(",".join(f"{v:.6f}" for v in row) for row in rows) + "\n"
+    )
+    return path
+
+
+def _still_hand(count: int = 300) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(0)
+    base = {"Hand top": [0.4, 0.1, -0.3], "Hand left": [0.42, 0.13, -0.33], "Hand right": [0.43, 0.07, -0.33]}
+    return {name: np.asarray(p) + 1e-4 * rng.normal(size=(count, 3)) for name, p in base.items()}
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture
+def two_recordings(shared_recordings, tmp_path) -> Path:
+    folder = tmp_path / "demos"
+    folder.mkdir()
+    for name in ("subject1_run1.tsv", "subject2_run1.tsv"):
+        shutil.copy(shared_recordings / name, folder / name)
+    return folder
+
+
+# -- bad input, refused before any work -----------------------------------------------------------------
+
+
+def test_an_empty_or_missing_demo_folder_is_refused(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(LearnError, match="no recordings"):
+        learn(tmp_path / "empty", tmp_path / "pool", progress=False)
+    code, _, err = run_cli(
+        capsys, "learn", "--demos", str(tmp_path / "missing"), "--out", str(tmp_path / "pool")
+    )
+    assert code == 2 and "no such demonstration folder" in err
+    assert not (tmp_path / "pool").exists()
+
+
+def test_an_unreadable_recording_is_named(tmp_path):
+    (tmp_path / "demos").mkdir()
+    (tmp_path / "demos" / "broken.tsv").write_text("not a recording\n")
+    with pytest.raises(LearnError, match=r"broken\.tsv"):
+        learn(tmp_path / "demos", tmp_path / "pool", progress=False)
+    assert not (tmp_path / "pool").exists()
+
+
+def test_recordings_without_hand_markers_are_refused(tmp_path):
+    (tmp_path / "demos").mkdir()
+    _csv(tmp_path / "demos" / "elbow.csv", {"Elbow": np.zeros((200, 3))})
+    with pytest.raises(LearnError, match=r"elbow.csv: no hand markers Hand top"):
+        learn(tmp_path / "demos", tmp_path / "pool", progress=False)
+
+
+def test_a_recording_without_movement_is_refused_by_name(tmp_path):
+    (tmp_path / "demos").mkdir()
+    _csv(tmp_path / "demos" / "still.csv", _still_hand())
+    with pytest.raises(LearnError, match=r"still\.csv: the segmentation finds no movement"):
+        learn(tmp_path / "demos", tmp_path / "pool", progress=False)
+
+
+def test_an_output_that_is_not_a_pool_is_refused_unless_forced(two_recordings, tmp_path):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me")
+    with pytest.raises(LearnError, match="not empty and not a pool learned by besman"):
+        learn(two_recordings, out, progress=False)
+    assert _snapshot(out) == {"notes.txt": b"keep me"}
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(LearnError, match="the output is a file"):
+        learn(two_recordings, tmp_path / "file", progress=False)
+
+
+def test_a_pool_for_another_robot_or_other_settings_is_refused_and_kept(two_recordings, tmp_path):
+    out = tmp_path / "pool"
+    (out / "work").mkdir(parents=True)
+    (out / "work" / "learn.json").write_text(
+        json.dumps({"schema_version": 1, "kind": "besman-learn", "robot": "pa10"})
+    )
+    (out / "reach.json").write_text("{}")
+    before = _snapshot(out)
+    with pytest.raises(LearnError, match="learned for robot 'pa10', not 'aila'"):
+        learn(two_recordings, out, progress=False)
+    (out / "work" / "learn.json").write_text(
+        json.dumps({"schema_version": 1, "kind": "besman-learn", "robot": "aila"})
+    )
+    before = _snapshot(out)
+    with pytest.raises(LearnError, match="other recordings or settings"):
+        learn(two_recordings, out, progress=False)
+    assert _snapshot(out) == before
+    with pytest.raises(LearnError, match=r"robot 'pa10': learning runs on aila"):
+        learn(two_recordings, out, LearnSettings(robot="pa10"), progress=False)
+
+
+# -- retargeting and shaping against their definitions ----------------------------------------------------
+
+
+def test_the_workspace_map_sends_grasp_and_place_onto_the_robots():
+    human_grasp, human_place = np.array([0.15, 0.18, -0.27]), np.array([0.45, -0.55, 0.25])
+    robot_grasp, robot_place = np.array([0.53, -0.07, 0.93]), np.array([0.53, -0.41, 1.0])
+    mapping = fit_workspace_map(human_grasp, human_place, robot_grasp, robot_place)
+    np.testing.assert_allclose(mapping.apply(human_grasp), robot_grasp, atol=1e-12)
+    mapped = mapping.apply(human_place) - robot_grasp
+    np.testing.assert_allclose(mapped[:2], (robot_place - robot_grasp)[:2], atol=1e-12)  # horizontal exact
+    assert mapped[2] == pytest.approx(mapping.scale * (human_place - human_grasp)[2])  # heights scaled alike
+    with pytest.raises(ValueError, match="too close"):
+        fit_workspace_map(human_grasp, human_grasp + [0.01, 0, 0.3], robot_grasp, robot_place)
+
+
+def test_shaped_keeps_the_forcing_response_between_new_end_points():
+    world = tabletop_world()
+    arm = Executor(world).arm
+    rng = np.random.default_rng(1)
+    shape = point_to_point("shape", arm.lower * 0.1, arm.upper * 0.1, arm, 1.0)
+    shape.dmp.set_params(shape.theta + rng.normal(size=shape.theta.size))
+    deviations = []
+    for start, goal in ((arm.lower * 0.1, arm.upper * 0.1), (arm.upper * 0.2, arm.lower * 0.05)):
+        moved = shaped(shape, "moved", start, goal, arm).dmp.trajectory().positions
+        direct = DMP(arm.dofs, execution_time=shape.dmp.execution_time, start=start, goal=goal).trajectory()
+        deviations.append(moved - direct.positions)
+    np.testing.assert_allclose(deviations[0], deviations[1], atol=1e-10)
+    assert np.abs(deviations[0]).max() > 1e-3
+
+
+def test_retargeting_gives_a_joint_primitive_between_the_blocks_planned_configurations():
+    world = tabletop_world()
+    arm = Executor(world).arm
+    start = prepare(world, "reach", [0.55, -0.08])
+    human = CartesianDMP(execution_time=1.5)
+    human.position.weights = np.random.default_rng(2).normal(scale=3.0, size=human.position.weights.shape)
+    mapping = WorkspaceMap(yaw=0.7, scale=0.5, offset=(0.1, 0.2, 1.0))
+    primitive = retarget(
+        MovementPrimitive(human, "reach", space="cartesian"), mapping, arm, start.start, start.goal
+    )
+    assert primitive.space == "joint" and primitive.robot == "aila" and primitive.provenance["retargeting"]
+    path = primitive.dmp.trajectory().positions
+    np.testing.assert_allclose(path[0], start.start, atol=1e-9)
+    np.testing.assert_allclose(path[-1], start.goal, atol=5e-3)  # the forcing has not quite died out
+
+
+# -- real runs ----------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def small_pool(tmp_path_factory) -> Path:
+    """A pool learned from two shared recordings, K = 2 tasks of 8 rollouts per block, by the command line."""
+    from conftest import SHARED_RECORDINGS
+
+    if not SHARED_RECORDINGS.exists():
+        pytest.skip("the shared recordings sit beside the repository (../shared)")
+    root = tmp_path_factory.mktemp("learned")
+    demos = root / "demos"
+    demos.mkdir()
+    for name in ("subject1_run1.tsv", "subject2_run1.tsv"):
+        shutil.copy(SHARED_RECORDINGS / name, demos / name)
+    out = root / "pool"
+    subprocess.run(
+        [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(out), *SMALL],
+        check=True,
+        capture_output=True,
+    )
+    return out
+
+
+@pytest.mark.slow
+def test_a_small_learn_writes_templates_with_provenance_and_figures(small_pool):
+    pool = SkillTemplatePool(small_pool)
+    assert sorted(pool) == ["carry", "reach", "return"] and not pool.problems()
+    reach = pool["reach"]
+    assert reach.box.names == ("object_x", "object_y") and len(reach.taus) == 2
+    facts = reach.provenance
+    assert facts["robot"] == "aila" and [r["file"] for r in facts["recordings"]] == [
+        "subject1_run1.tsv",
+        "subject2_run1.tsv",
+    ]
+    assert (
+        all(i["end_frame"] > i["start_frame"] for i in facts["instances"])
+        and facts["workspace_map"]["scale"] > 0
+    )
+    assert all(len(run["tau"]) == 2 for run in facts["training"])
+    for figure in ("summary.png", "segmentations.png", "learning_curves.png"):
+        assert (small_pool / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_an_interrupted_learn_resumes_to_the_same_pool(small_pool, tmp_path):
+    demos = small_pool.parent / "demos"
+    out = tmp_path / "pool"
+    command = [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(out), *SMALL]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 300
+    while not list((out / "work" / "refined").glob("*.json")) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    process.send_signal(signal.SIGINT)  # mid-refinement: one task done, the next running
+    process.wait(timeout=60)
+    done = list((out / "work" / "refined").glob("*.json"))
+    assert 1 <= len(done) < 6 and not (out / "reach.json").exists()
+    finished = {p.name: p.read_bytes() for p in done}
+    subprocess.run(command, check=True, capture_output=True)
+    for name, content in finished.items():  # finished work was kept, not redone
+        assert (out / "work" / "refined" / name).read_bytes() == content
+    for name in ("reach", "carry", "return"):
+        resumed, uninterrupted = SkillTemplatePool(out)[name], SkillTemplatePool(small_pool)[name]
+        np.testing.assert_array_equal(resumed.taus, uninterrupted.taus)
+        np.testing.assert_array_equal(resumed.thetas, uninterrupted.thetas)
+
+
+@pytest.mark.slow
+def test_online_refinement_stays_within_its_budget_and_keeps_what_it_found():
+    template = SkillTemplatePool(COMMITTED_POOL)["return"]
+    world = tabletop_world()
+    tau = np.array([0.6, -0.36])
+    start = prepare(world, "return", tau)
+    result = refine_online(world, start, template, tau, seed=3)
+    assert result.rollouts <= MAX_ROLLOUTS and uncertainty(template, tau) > 0
+    assert result.best_reward >= result.mean_reward
+    outcome = rollout(world, start, result.primitive)  # the chosen theta, run again: the same rollout
+    assert Reward().score(outcome) == pytest.approx(max(result.best_reward, result.mean_reward))
+    assert outcome.success == result.success
+
+
+@pytest.mark.slow
+def test_the_learned_tree_places_the_box_with_the_committed_pool_and_with_pool(small_pool, capsys):
+    for extra in ((), ("--pool", str(small_pool))):
+        code, out, _ = run_cli(
+            capsys,
+            "run",
+            str(LEARNED_TREE),
+            "--set",
+            "object=0.5,-0.05",
+            "--set",
+            "place=0.58,-0.44",
+            "--json",
+            *extra,
+        )
+        summary = json.loads(out)
+        assert code == 0 and summary["status"] == "SUCCESS" and summary["placement_error_m"] < 0.02
+    code, _, err = run_cli(capsys, "run", str(LEARNED_TREE), "--pool", str(small_pool / "missing"))
+    assert code == 2 and "no such pool directory" in err
