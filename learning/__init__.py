@@ -9,7 +9,10 @@ grip aperture and the object's marker as contact signals), :mod:`besman.learning
 boundary F1), :mod:`besman.learning.segmentation_plot`,
 :mod:`besman.learning.labelling` (building blocks: clustering, few-shot 1-NN),
 :mod:`besman.learning.imitation` (a Cartesian-DMP primitive per building block),
-:mod:`besman.learning.policy_search` (CMA-ES and xNES refining theta on batched rollouts) and
+:mod:`besman.learning.policy_search` (CMA-ES and xNES refining theta on batched rollouts),
+:mod:`besman.learning.retargeting` (a person's movement onto AILA's arm), :mod:`besman.learning.pipeline`
+(``besman learn``: recordings to a template pool, figures by :mod:`besman.learning.pipeline_plots`),
+:mod:`besman.learning.online` (refining a template's instance in a copy of the world) and
 :mod:`besman.learning.throwing_experiment` (the paper's skill-template experiment, drawn by
 :mod:`besman.learning.throwing_plots`; :mod:`besman.learning.figures` writes PNGs).
 """

@@ -104,7 +104,7 @@ class LearnSettings:
     examples: tuple[str, ...] = ()
     roles: tuple[tuple[str, str], ...] = ()
     n_weights: int = 6
-    spread: float = 0.3
+    spread: float = 0.1
 
     def role_labels(self) -> dict[str, str]:
         given = dict(self.roles)
@@ -123,7 +123,14 @@ class LearnSettings:
                 raise LearnError(f"{name} must be at least {low}, got {getattr(self, name)}")
         if not self.spread > 0:
             raise LearnError(f"spread must be positive, got {self.spread}")
-        self.role_labels()
+        if not self.examples:
+            clusters = {f"block{k + 1}" for k in range(self.n_blocks)}
+            for block, label in self.role_labels().items():
+                if label not in clusters:
+                    raise LearnError(
+                        f"roles: {block}={label!r} names no cluster; clustering into {self.n_blocks} names "
+                        f"them block1 to block{self.n_blocks} (or give --examples to use their labels)"
+                    )
 
     def as_dict(self) -> dict:
         document = dataclasses.asdict(self)
@@ -192,6 +199,13 @@ class _Run:
         for path, demo in zip(settings.examples, self.examples, strict=True):
             if not demo.segments:
                 raise LearnError(f"{path}: an example needs its annotation (<stem>_manually_segmented.json)")
+        annotated = {segment.label for demo in self.examples for segment in demo.segments}
+        for block, label in settings.role_labels().items() if self.examples else ():
+            if label not in annotated:
+                raise LearnError(
+                    f"roles: {block}={label!r} is not a label of the examples (they have: "
+                    f"{', '.join(sorted(annotated))})"
+                )
         self.record = {
             "schema_version": SCHEMA_VERSION,
             "kind": KIND,

@@ -62,9 +62,15 @@ def _segmentations(path, demos, files, movements, blocks) -> Path:
     return save_png(figure, path)
 
 
-def _curves(path, refined) -> Path:
+def _per_block(refined):
+    """A figure with one panel per block, and the panels paired with the blocks' training runs."""
     figure, axes = plt.subplots(1, len(refined), figsize=(4 * len(refined), 3.2), squeeze=False)
-    for ax, (block, runs) in zip(axes[0], refined.items(), strict=True):
+    return figure, zip(axes[0], refined.items(), strict=True)
+
+
+def _curves(path, refined) -> Path:
+    figure, panels = _per_block(refined)
+    for ax, (block, runs) in panels:
         for run in runs:
             curve = np.array(run["curve"])
             ax.plot(curve[:, 0], curve[:, 2], color=COLOURS[block], alpha=0.6, lw=1)
@@ -76,8 +82,8 @@ def _curves(path, refined) -> Path:
 
 
 def _summary(path, refined) -> Path:
-    figure, axes = plt.subplots(1, len(refined), figsize=(4 * len(refined), 3.2), squeeze=False)
-    for ax, (block, runs) in zip(axes[0], refined.items(), strict=True):
+    figure, panels = _per_block(refined)
+    for ax, (block, runs) in panels:
         k = np.arange(len(runs))
         for offset, key, outcome, label in (
             (-0.15, "start_reward", "start_outcome", "retargeted"),

@@ -12,9 +12,9 @@ Two steps, each documented by what it keeps:
    fixes yaw and scale; the offset puts the person's grasp point on the robot's. On the shared
    recordings the person's grasp-to-place vector is about 0.78 m long, AILA's 0.34 m: the person's
    movements shrink to about 0.44 of their size.
-2. **Onto the arm** (:func:`retarget`): a DMP's trajectory is the direct movement between its end points
-   plus the forcing term's response, which is linear in the weights; mapping the person's movement by the
-   linear part A = s R_z(yaw) maps that deviation by A. The robot's movement is its direct joint-space
+2. **Onto the arm** (:func:`retarget`): the person's movement (the imitated primitive's trajectory) minus
+   the direct movement between its end points (a DMP without forcing, at rest at both ends) is its shape;
+   the map's linear part A = s R_z(yaw) maps that deviation. The robot's movement is its direct joint-space
    movement from the block's start to its end configuration with the hand displaced by the person's
    mapped deviation at every instant: inverse kinematics from the direct movement's configuration (within
    :data:`SHAPE_TOLERANCE`), keeping the direct movement's hand orientation (a person's hand and a parallel
@@ -25,7 +25,6 @@ Two steps, each documented by what it keeps:
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass
 
@@ -102,14 +101,15 @@ def retarget(
     the time if the arm cannot follow."""
     if not isinstance(primitive.dmp, CartesianDMP):
         raise InputError(f"primitive {primitive.name!r} is not Cartesian: retargeting maps hand paths")
-    # The person's deviation: the forcing term's response alone (start = goal = 0), mapped by A.
-    deviation = copy.deepcopy(primitive.dmp.position)
-    deviation.weights = mapping.linear @ deviation.weights
-    deviation.configure(start=0.0, start_velocity=0.0, start_acceleration=0.0, goal=0.0, goal_velocity=0.0)
-    offsets = deviation.trajectory()
-    direct = DMP(arm.dofs, execution_time=deviation.execution_time, dt=deviation.dt, start=start, goal=goal)
+    # The person's deviation from the direct movement between the same end points (at rest at both, as the
+    # robot's movements are), mapped by A.
+    human = primitive.dmp.trajectory()
+    duration, period = primitive.dmp.execution_time, primitive.dmp.dt
+    straight = DMP(3, execution_time=duration, dt=period, start=human.positions[0], goal=human.positions[-1])
+    offsets = (human.positions - straight.trajectory().positions) @ mapping.linear.T
+    direct = DMP(arm.dofs, execution_time=duration, dt=period, start=start, goal=goal)
     joints = direct.trajectory().positions.copy()
-    for k, (configuration, offset) in enumerate(zip(joints, offsets.positions, strict=True)):
+    for k, (configuration, offset) in enumerate(zip(joints, offsets, strict=True)):
         pose = arm.site_pose(configuration)
         result = arm.solve_ik(
             pose.position + offset, pose.quaternion, initial=configuration, tolerances=(1e-7, 1e-6)
@@ -117,12 +117,18 @@ def retarget(
         if result.position_error > SHAPE_TOLERANCE[0] or result.orientation_error > SHAPE_TOLERANCE[1]:
             raise InputError(
                 f"retargeting {primitive.name!r}: AILA's hand cannot follow the path at "
-                f"t={offsets.times[k]:.2f} s ({np.round(pose.position + offset, 3).tolist()}): "
+                f"t={human.times[k]:.2f} s ({np.round(pose.position + offset, 3).tolist()}): "
                 f"{result.message}"
             )
         joints[k] = np.clip(result.qpos, arm.lower, arm.upper)
     joint_dmp = DMP(arm.dofs, settings=DMPSettings(n_weights=n_weights), execution_time=direct.execution_time)
-    joint_dmp.imitate(offsets.times, joints)
+    # The primitive will start and end at rest (``shaped``): imitate it under those boundary conditions, so
+    # that the forcing term, not a start acceleration estimated from the path, carries the shape.
+    velocities = np.gradient(joints, human.times, axis=0, edge_order=2)
+    velocities[[0, -1]] = 0.0
+    accelerations = np.gradient(velocities, human.times, axis=0, edge_order=2)
+    accelerations[[0, -1]] = 0.0
+    joint_dmp.imitate(human.times, joints, velocities=velocities, accelerations=accelerations)
     joint_dmp.configure(start=start, goal=goal, start_velocity=0.0, start_acceleration=0.0, goal_velocity=0.0)
     return MovementPrimitive(
         joint_dmp,

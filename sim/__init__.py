@@ -9,7 +9,8 @@
 - :mod:`besman.sim.primitives`, :mod:`besman.sim.manipulation` - movement primitives from goals; pick and
   place planning.
 - :mod:`besman.sim.throwing`, :mod:`besman.sim.pick_place` - the tasks, evaluated in batches
-  (:mod:`besman.sim.evaluation`: local cores or Ray).
+  (:mod:`besman.sim.evaluation`: local cores or Ray); :mod:`besman.sim.blocks` - pick and place's building
+  blocks (reach, carry, return) simulated one at a time, for refining learned primitives.
 - :mod:`besman.sim.viewer` - the browser viewer (viser, mjviser): the world posed from the simulation and a
   tree panel.
 """

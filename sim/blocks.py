@@ -22,7 +22,6 @@ smallest joint-limit margin and the configurations in collision - and :class:`Re
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -308,7 +307,3 @@ class BlockTask:
             details.append(rollout(self.world, self.start(tau), self.shape))
         return Evaluation(np.array([self.config.reward.score(d) for d in details]), tuple(details))
 
-
-def shape_file(directory: str | Path, block: str) -> Path:
-    """Where the pipeline keeps a block's learned primitive for worker processes."""
-    return Path(directory) / f"{block}.json"

@@ -22,6 +22,8 @@ from besman.skills import DMP, CartesianDMP, MovementPrimitive, quaternion
 from besman.skills.errors import InputError
 from besman.skills.transformation import minimum_jerk
 
+LIMIT_MARGIN = 1e-3  # rad: how close a shaped movement may come to a joint limit
+
 
 def top_down(yaw: float) -> np.ndarray:
     """Quaternion (w, x, y, z) of a hand pointing down, fingers closing along (cos yaw, sin yaw, 0)."""
@@ -83,8 +85,11 @@ def shaped(
 ) -> MovementPrimitive:
     """A copy of the joint-space primitive ``shape`` from ``start`` to ``goal`` (at rest at both ends) with
     its own forcing term and duration: a learned movement between new end points. The DMP's trajectory is
-    the moving goal between the end points plus the forcing term's response, which does not depend on them
-    (:mod:`besman.skills.transformation`), so the learned deviation from the direct path is kept."""
+    the direct movement between the end points plus the forcing term's response, which does not depend on
+    them (:mod:`besman.skills.transformation`), so the learned deviation from the direct path is kept -
+    except where it would take a joint out of its range (an end point at a limit, say): that joint keeps
+    the largest share of its deviation that stays inside (the response is linear in its weights, so the
+    share is exact)."""
     if shape.space != "joint" or shape.dmp.n_dims != arm.dofs:
         raise InputError(
             f"primitive {shape.name!r} must be a joint-space primitive of {arm.dofs} joints "
@@ -92,9 +97,20 @@ def shaped(
         )
     primitive = copy.deepcopy(shape)
     primitive.name = name
-    primitive.dmp.configure(
-        start=start, start_velocity=0.0, start_acceleration=0.0, goal=goal, goal_velocity=0.0
-    )
+    dmp = primitive.dmp
+    dmp.configure(start=start, start_velocity=0.0, start_acceleration=0.0, goal=goal, goal_velocity=0.0)
+    direct = DMP(arm.dofs, execution_time=dmp.execution_time, dt=dmp.dt, start=start, goal=goal)
+    path = direct.trajectory().positions
+    response = dmp.trajectory().positions - path
+    room = np.where(response > 0, arm.upper - LIMIT_MARGIN - path, arm.lower + LIMIT_MARGIN - path)
+    moves = np.abs(response) > 1e-12
+    shares = np.ones(arm.dofs)
+    for joint in range(arm.dofs):
+        moving = moves[:, joint]
+        if moving.any():
+            share = (room[moving, joint] / response[moving, joint]).min()
+            shares[joint] = min(1.0, max(0.0, share))
+    dmp.weights = dmp.weights * shares[:, None]
     return primitive
 
 

@@ -118,3 +118,14 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings,
     long = report["long_recording"]
     assert long["duration_s"] > 100 and math.isfinite(long["exact_seconds"])
     assert 0.9 < long["pruned_vs_exact_f1_0.1"] <= 1
+
+
+@pytest.mark.slow
+def test_learned_benchmark_compares_the_three_trees_as_json():
+    report = run_benchmark("learned.py", "--count", "2")
+    assert report["benchmark"] == "learned" and report["count"] == 2
+    assert set(report["trees"]) == {"ik", "zero-shot", "refined"}
+    for name, row in report["trees"].items():
+        assert 0.0 <= row["success_rate"] <= 1.0
+        assert row["mean_episode_s"] > 0 and row["mean_path_length_m"] > 0
+        assert row["met"] is None if name == "ik" else row["met"] in (True, False)

@@ -16,13 +16,17 @@ import numpy as np
 import pytest
 from helpers import run_cli
 
+from besman.cli import main
 from besman.learning.online import MAX_ROLLOUTS, refine_online, uncertainty
 from besman.learning.pipeline import LearnError, LearnSettings, learn
 from besman.learning.retargeting import WorkspaceMap, fit_workspace_map, retarget
 from besman.sim import Executor, tabletop_world
-from besman.sim.blocks import Reward, prepare, rollout
+from besman.sim.blocks import BlockTask, BlockTaskConfig, Reward, prepare, rollout
 from besman.sim.primitives import point_to_point, shaped
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, SkillTemplatePool
+from besman.trees.files import loads_tree
+from besman.trees.manipulation import PlanGrasp, PlanPlace
+from besman.trees.tabletop import tabletop_run
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED_POOL = ROOT / "examples" / "pools" / "pick_place"
@@ -128,6 +132,24 @@ def test_a_pool_for_another_robot_or_other_settings_is_refused_and_kept(two_reco
         learn(two_recordings, out, LearnSettings(robot="pa10"), progress=False)
 
 
+def test_roles_that_name_no_label_are_refused_before_any_work(
+    two_recordings, shared_recordings, tmp_path, capsys
+):
+    with pytest.raises(LearnError, match=r"reach='block9' names no cluster"):
+        learn(two_recordings, tmp_path / "pool", LearnSettings(roles=(("reach", "block9"),)), progress=False)
+    example = str(shared_recordings / "subject1_run2.tsv")
+    with pytest.raises(LearnError, match=r"carry='block5' is not a label of the examples"):
+        learn(
+            two_recordings,
+            tmp_path / "pool",
+            LearnSettings(examples=(example,), roles=(("carry", "block5"),)),
+        )
+    with pytest.raises(SystemExit, match="2"):  # argparse's own usage error
+        main(["learn", "--demos", str(two_recordings), "--out", "x", "--roles", "reach"])
+    assert "--roles takes BLOCK=LABEL" in capsys.readouterr().err
+    assert not (tmp_path / "pool").exists() and not (tmp_path / "x").exists()
+
+
 # -- retargeting and shaping against their definitions ----------------------------------------------------
 
 
@@ -143,27 +165,49 @@ def test_the_workspace_map_sends_grasp_and_place_onto_the_robots():
         fit_workspace_map(human_grasp, human_grasp + [0.01, 0, 0.3], robot_grasp, robot_place)
 
 
+def _shaped_deviation(shape, start, goal, arm) -> np.ndarray:
+    moved = shaped(shape, "moved", start, goal, arm).dmp.trajectory().positions
+    direct = DMP(arm.dofs, execution_time=shape.dmp.execution_time, start=start, goal=goal).trajectory()
+    return moved - direct.positions
+
+
 def test_shaped_keeps_the_forcing_response_between_new_end_points():
     world = tabletop_world()
     arm = Executor(world).arm
-    rng = np.random.default_rng(1)
-    shape = point_to_point("shape", arm.lower * 0.1, arm.upper * 0.1, arm, 1.0)
-    shape.dmp.set_params(shape.theta + rng.normal(size=shape.theta.size))
-    deviations = []
-    for start, goal in ((arm.lower * 0.1, arm.upper * 0.1), (arm.upper * 0.2, arm.lower * 0.05)):
-        moved = shaped(shape, "moved", start, goal, arm).dmp.trajectory().positions
-        direct = DMP(arm.dofs, execution_time=shape.dmp.execution_time, start=start, goal=goal).trajectory()
-        deviations.append(moved - direct.positions)
-    np.testing.assert_allclose(deviations[0], deviations[1], atol=1e-10)
-    assert np.abs(deviations[0]).max() > 1e-3
+    middle = (arm.lower + arm.upper) / 2
+    span = arm.upper - arm.lower
+    shape = point_to_point("shape", middle - 0.1 * span, middle + 0.1 * span, arm, 1.0)
+    shape.dmp.set_params(shape.theta + np.random.default_rng(1).normal(scale=0.3, size=shape.theta.size))
+    first = _shaped_deviation(shape, middle - 0.1 * span, middle + 0.1 * span, arm)
+    second = _shaped_deviation(shape, middle + 0.2 * span, middle - 0.05 * span, arm)
+    np.testing.assert_allclose(first, second, atol=1e-10)
+    assert np.abs(first).max() > 1e-3
 
 
-def test_retargeting_gives_a_joint_primitive_between_the_blocks_planned_configurations():
+def test_shaped_keeps_only_what_fits_of_a_deviation_that_would_leave_a_joints_range():
+    world = tabletop_world()
+    arm = Executor(world).arm
+    middle = (arm.lower + arm.upper) / 2
+    shape = point_to_point("shape", middle, middle, arm, 1.0)
+    shape.dmp.weights = np.full_like(shape.dmp.weights, 50.0)  # every joint pushed up, far
+    start = middle.copy()
+    start[3] = arm.upper[3]  # joint 3 starts and ends at its upper limit
+    free = _shaped_deviation(shape, middle, middle, arm)
+    limited = _shaped_deviation(shape, start, start, arm)
+    path = shaped(shape, "moved", start, start, arm).dmp.trajectory().positions
+    assert np.all(path <= arm.upper + 1e-9) and np.all(path >= arm.lower - 1e-9)
+    assert np.abs(limited[:, 3]).max() < 1e-9 < np.abs(free[:, 3]).max()  # no room: nothing kept
+    others = [j for j in range(arm.dofs) if j != 3]
+    np.testing.assert_allclose(limited[:, others], free[:, others], atol=1e-9)  # the others keep theirs
+
+
+@pytest.mark.parametrize("size", [3.0, 30.0])
+def test_retargeting_adds_the_mapped_human_deviation_to_the_direct_movement(size):
     world = tabletop_world()
     arm = Executor(world).arm
     start = prepare(world, "reach", [0.55, -0.08])
     human = CartesianDMP(execution_time=1.5)
-    human.position.weights = np.random.default_rng(2).normal(scale=3.0, size=human.position.weights.shape)
+    human.position.weights = np.random.default_rng(2).normal(scale=size, size=human.position.weights.shape)
     mapping = WorkspaceMap(yaw=0.7, scale=0.5, offset=(0.1, 0.2, 1.0))
     primitive = retarget(
         MovementPrimitive(human, "reach", space="cartesian"), mapping, arm, start.start, start.goal
@@ -172,6 +216,15 @@ def test_retargeting_gives_a_joint_primitive_between_the_blocks_planned_configur
     path = primitive.dmp.trajectory().positions
     np.testing.assert_allclose(path[0], start.start, atol=1e-9)
     np.testing.assert_allclose(path[-1], start.goal, atol=5e-3)  # the forcing has not quite died out
+    # Independently: the person's deviation is the forcing response alone (start = goal = 0), mapped by A.
+    deviation = DMP(3, execution_time=1.5, dt=primitive.dmp.dt)
+    deviation.weights = mapping.linear @ human.position.weights
+    expected = deviation.trajectory().positions
+    direct = DMP(arm.dofs, execution_time=1.5, dt=primitive.dmp.dt, start=start.start, goal=start.goal)
+    achieved = arm.site_path(path) - arm.site_path(direct.trajectory().positions)
+    assert np.abs(expected).max() > 0.002  # there is a shape to keep
+    # Six weights per joint keep the shape within a tenth of its size (measured: 2 mm of 22 mm).
+    assert np.abs(achieved - expected).max() < 0.15 * np.abs(expected).max()
 
 
 # -- real runs ----------------------------------------------------------------------------------------------
@@ -273,3 +326,51 @@ def test_the_learned_tree_places_the_box_with_the_committed_pool_and_with_pool(s
         assert code == 0 and summary["status"] == "SUCCESS" and summary["placement_error_m"] < 0.02
     code, _, err = run_cli(capsys, "run", str(LEARNED_TREE), "--pool", str(small_pool / "missing"))
     assert code == 2 and "no such pool directory" in err
+
+
+@pytest.mark.slow
+def test_labels_from_annotated_examples_pick_the_same_instances_as_clustering(
+    small_pool, shared_recordings, tmp_path
+):
+    example = str(shared_recordings / "subject1_run2.tsv")  # not one of the learned recordings
+    out = tmp_path / "pool"
+    learn(
+        small_pool.parent / "demos",
+        out,
+        LearnSettings(tasks=2, budget=1, examples=(example,)),
+        progress=False,
+    )
+    few_shot = json.loads((out / "work" / "labels.json").read_text())
+    clustered = json.loads((small_pool / "work" / "labels.json").read_text())
+    assert few_shot["method"].startswith("few-shot") and clustered["method"].startswith("clustering")
+    for block in ("reach", "carry", "return"):
+        frames = [(i["file"], i["start_frame"], i["end_frame"]) for i in few_shot["blocks"][block]]
+        assert frames == [(i["file"], i["start_frame"], i["end_frame"]) for i in clustered["blocks"][block]]
+
+
+@pytest.mark.slow
+def test_block_rollouts_on_ray_equal_those_in_local_processes():
+    pytest.importorskip("ray")
+    task = BlockTask(BlockTaskConfig("return", str(COMMITTED_POOL / "work" / "shapes" / "return.json")))
+    thetas = task.shape.theta + np.random.default_rng(4).normal(scale=0.05, size=(2, task.shape.theta.size))
+    taus = np.array([[0.5, -0.4], [0.6, -0.36]])
+    local = task.evaluate(thetas, taus)
+    remote = task.evaluate(thetas, taus, backend="ray")
+    np.testing.assert_array_equal(local.rewards, remote.rewards)
+    assert [d.success for d in local.details] == [d.success for d in remote.details]
+
+
+@pytest.mark.slow
+def test_the_learned_tree_refines_unsure_instances_in_a_copy_of_the_world_first():
+    text = LEARNED_TREE.read_text().replace("refine_above: 0.08", "refine_above: 0.0")  # every instance
+    root = loads_tree(text, base=LEARNED_TREE.parent, source=LEARNED_TREE.name)
+    runner, _ = tabletop_run(root, {"object": (0.6, -0.12), "place": (0.47, -0.46)})
+    result = runner.run()
+    assert result.status == "SUCCESS"
+    planners = [node for node in root.iterate() if isinstance(node, PlanGrasp | PlanPlace)]
+    assert len(planners) == 2
+    for planner in planners:
+        refinement = planner.refinement
+        assert refinement is not None and 1 < refinement.rollouts <= MAX_ROLLOUTS
+        assert refinement.best_reward >= refinement.mean_reward
+        assert "refined online" in planner.feedback_message
