@@ -374,3 +374,24 @@ def test_the_learned_tree_refines_unsure_instances_in_a_copy_of_the_world_first(
         assert refinement is not None and 1 < refinement.rollouts <= MAX_ROLLOUTS
         assert refinement.best_reward >= refinement.mean_reward
         assert "refined online" in planner.feedback_message
+
+
+@pytest.mark.slow
+def test_a_full_learn_on_the_shared_recordings_makes_the_committed_pool(shared_recordings, tmp_path):
+    """The README's pool is what ``besman learn`` makes of the 15 shared recordings with the defaults."""
+    out = tmp_path / "pool"
+    subprocess.run(
+        [sys.executable, "-m", "besman", "learn", "--demos", str(shared_recordings), "--out", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    learned, committed = SkillTemplatePool(out), SkillTemplatePool(COMMITTED_POOL)
+    assert sorted(learned) == sorted(committed) == ["carry", "reach", "return"]
+    for name in learned:
+        np.testing.assert_array_equal(learned[name].taus, committed[name].taus)
+        np.testing.assert_allclose(learned[name].thetas, committed[name].thetas, rtol=0, atol=1e-9)
+        assert all(run["success"] for run in learned[name].provenance["training"])
+    record = json.loads((out / "work" / "learn.json").read_text())
+    assert len(record["recordings"]) == 15 and record == json.loads(
+        (COMMITTED_POOL / "work" / "learn.json").read_text()
+    )
