@@ -535,16 +535,19 @@ def _phase(segment: DemonstrationSegment) -> float:
 def _longest_run(
     segments: list[DemonstrationSegment], names: list[str], label: str
 ) -> tuple[int, int] | None:
-    """First and last index of the longest run of adjacent segments (sharing a boundary) named ``label``."""
+    """First and last index of the longest (in samples) run of adjacent segments (sharing a boundary, no
+    pause between them) named ``label``; None if no segment is."""
     best, first = None, None
     for k, name in enumerate(names):
-        if name == label and (
-            first is None or segments[k - 1].end != segments[k].start or names[k - 1] != label
-        ):
-            first = k
         if name != label:
             first = None
-        elif best is None or (k - first) > (best[1] - best[0]):
+            continue
+        if first is None or segments[k - 1].end != segments[k].start:
+            first = k
+        if (
+            best is None
+            or segments[k].end - segments[first].start > segments[best[1]].end - segments[best[0]].start
+        ):
             best = (first, k)
     return best
 

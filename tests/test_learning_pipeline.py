@@ -17,8 +17,9 @@ import pytest
 from helpers import run_cli
 
 from besman.cli import main
+from besman.learning.labelling import DemonstrationSegment
 from besman.learning.online import MAX_ROLLOUTS, refine_online, uncertainty
-from besman.learning.pipeline import LearnError, LearnSettings, learn
+from besman.learning.pipeline import LearnError, LearnSettings, _longest_run, learn
 from besman.learning.retargeting import WorkspaceMap, fit_workspace_map, retarget
 from besman.sim import Executor, tabletop_world
 from besman.sim.blocks import BlockTask, BlockTaskConfig, Reward, prepare, rollout
@@ -395,3 +396,12 @@ def test_a_full_learn_on_the_shared_recordings_makes_the_committed_pool(shared_r
     assert len(record["recordings"]) == 15 and record == json.loads(
         (COMMITTED_POOL / "work" / "learn.json").read_text()
     )
+
+
+def test_a_blocks_instance_is_the_longest_run_of_adjacent_segments_with_its_label():
+    demo = None  # the segments' demonstration plays no part in the choice
+    spans = [(0, 10), (10, 20), (30, 35), (35, 60), (60, 70)]
+    segments = [DemonstrationSegment(demo, a, b) for a, b in spans]
+    assert _longest_run(segments, ["a", "a", "a", "a", "b"], "a") == (2, 3)  # 30 samples beat 20
+    assert _longest_run(segments, ["a", "b", "a", "b", "a"], "a") == (0, 0)  # ties: the first
+    assert _longest_run(segments, ["b"] * 5, "a") is None
