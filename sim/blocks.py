@@ -306,4 +306,3 @@ class BlockTask:
             self.shape.dmp.set_params(theta)
             details.append(rollout(self.world, self.start(tau), self.shape))
         return Evaluation(np.array([self.config.reward.score(d) for d in details]), tuple(details))
-

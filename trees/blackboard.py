@@ -17,6 +17,8 @@ key (:mod:`besman.trees.base`). Defaults:
 - ``/<ns>/tau`` - task parameters; provided by the author or a remap, read by ``InstantiateSkillTemplate``.
 - ``/<ns>/primitive`` - a movement primitive; ``InstantiateSkillTemplate`` writes, ``ExecutePrimitive`` reads.
 - ``/<ns>/configuration`` - joint values; provided by the author or a remap, read by ``AtPose``.
+- ``/<ns>/home`` - a movement primitive back to the home configuration; ``PlanReturn`` writes, the return
+  subtree's ``ExecutePrimitive`` reads.
 
 :func:`set_task_values` writes the ``/task`` values of a run.
 """

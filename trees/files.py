@@ -17,10 +17,11 @@ Node types (:data:`~besman.trees.nodes.NODE_TYPES`, derived from the classes): t
 (``Sequence``, ``Selector``, ``Parallel``) and decorators (``Retry``, ``Repeat``, ``Inverter``,
 ``SuccessIsFailure``, ``FailureIsSuccess``, ``SuccessIsRunning``, ``Timeout`` in simulated time), besman's
 leaves (``ExecutePrimitive``, ``InstantiateSkillTemplate``, ``Gripper``, ``ObjectGrasped``, ``ObjectAt``,
-``AtPose``, ``Wait``, ``PerceiveObject``, ``PlanGrasp``, ``PlanPlace``) and subtree idioms (``Grasp``,
-``Place``, ``GraspThenPlace``). Primitives are referenced by the path of their JSON file; templates by
-``module:attribute`` (an object with ``instantiate(tau)``), or a pool and a ``template_name``: ``pool:``
-names a skill template pool directory (relative to the tree file,
+``AtPose``, ``Wait``, ``PerceiveObject``, ``PlanGrasp``, ``PlanPlace``, ``PlanReturn``) and subtree idioms
+(``Grasp``, ``Place``, ``ReturnHome``, ``GraspThenPlace``); ``besman tree nodes`` lists them all with their
+parameters (:mod:`besman.trees.reference`). Primitives are referenced by the path of their JSON file;
+templates by ``module:attribute`` (an object with ``instantiate(tau)``), or a pool and a ``template_name``:
+``pool:`` names a skill template pool directory (relative to the tree file,
 :class:`~besman.skills.pool.SkillTemplatePool`) or a ``module:attribute`` mapping of names to templates.
 Leaves with blackboard roles take ``namespace`` and ``remap`` (role -> key).
 

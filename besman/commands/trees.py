@@ -79,6 +79,57 @@ def _print_summary(summary: dict, as_json: bool) -> None:
         print(f"failed at {summary['failed_node']}: {summary['message']}")
 
 
+def _tree_nodes(args: argparse.Namespace) -> int:
+    from besman.trees.reference import markdown_reference, node_reference
+
+    if args.markdown:
+        print(markdown_reference())
+        return 0
+    reference = node_reference(args.name)
+    if args.json:
+        print(json.dumps(reference, indent=2))
+        return 0
+    for type_name, entry in reference.items():
+        print(f"{type_name}: {entry['description']}")
+        if args.name is None:
+            continue
+        for param_name, param in entry["parameters"].items():
+            facts = [param["kind"], "required" if param["required"] else f"default {param['default']!r}"]
+            print(f"  {param_name}: " + ", ".join(facts + ([param["range"]] if param["range"] else [])))
+        for role, access in entry["blackboard"].items():
+            print(f"  blackboard {role}: {access}")
+    return 0
+
+
+def _tree_schema(args: argparse.Namespace) -> int:
+    from besman.skills.storage import write_atomically
+    from besman.trees.reference import tree_schema
+
+    text = json.dumps(tree_schema(), indent=2) + "\n"
+    if args.out is None:
+        print(text, end="")
+        return 0
+    check_output(args.out, option="--out", suffixes=(".json",))
+    write_atomically(args.out, text.encode("utf-8"))
+    return 0
+
+
+def _tree_check(args: argparse.Namespace) -> int:
+    from besman.trees import load_tree
+    from besman.trees.files import TreeFileError
+
+    problems = 0
+    for file in args.files:
+        try:
+            load_tree(file)
+        except TreeFileError as error:
+            problems += 1
+            print(str(error))
+        else:
+            print(f"{file}: ok")
+    return 1 if problems else 0
+
+
 def _run(args: argparse.Namespace) -> int:
 
     if args.log:
@@ -125,6 +176,18 @@ def register(commands) -> None:
     tree_render.add_argument("file")
     tree_render.add_argument("--out", required=True, help="output .svg, .png or .dot")
     tree_render.set_defaults(handler=_tree_render)
+    tree_nodes = tree_commands.add_parser("nodes", help="the node types of tree files and their parameters")
+    tree_nodes.add_argument("name", nargs="?", help="one node type, with its parameters and blackboard roles")
+    shown = tree_nodes.add_mutually_exclusive_group()
+    shown.add_argument("--json", action="store_true", help="everything as JSON")
+    shown.add_argument("--markdown", action="store_true", help="the reference as Markdown (docs/trees.md)")
+    tree_nodes.set_defaults(handler=_tree_nodes)
+    tree_schema = tree_commands.add_parser("schema", help="the JSON Schema of tree files, for editors")
+    tree_schema.add_argument("--out", default=None, help="write it to this .json file instead of printing it")
+    tree_schema.set_defaults(handler=_tree_schema)
+    tree_check = tree_commands.add_parser("check", help="load and validate tree files; one line per file")
+    tree_check.add_argument("files", nargs="+", metavar="FILE")
+    tree_check.set_defaults(handler=_tree_check)
 
     run = commands.add_parser("run", help="run a tree file on AILA's tabletop")
     run.add_argument("file")
