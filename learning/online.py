@@ -63,8 +63,10 @@ def refine_online(
     reward: Reward = DEFAULT_REWARD,
 ) -> Refinement:
     """At most ``budget`` rollouts of ``start``'s block in a fork of ``world`` (module documentation)."""
-    mean, covariance = template.distribution(np.asarray(tau, dtype=float))
     mask = varying(template)
+    if not mask.any():  # nothing to explore: the template is certain
+        return Refinement(template.instantiate(tau), np.nan, np.nan, 0, True)
+    mean, covariance = template.distribution(np.asarray(tau, dtype=float))
     fork = world.fork()
     primitive = template.primitive(mean, tau)
     successes = {}
@@ -80,8 +82,6 @@ def refine_online(
             rewards.append(reward.score(outcome))
         return np.array(rewards)
 
-    if not mask.any():  # nothing to explore: the template is certain
-        return Refinement(template.instantiate(tau), np.nan, np.nan, 0, True)
     spread = np.sqrt(np.maximum(np.diag(covariance)[mask], 1e-12))
     search = CMAES(WarmStart(mean[mask], spread), seed=seed, population_size=POPULATION)
     result = policy_search(objective, [search], budget=max(1, budget - 1))[0]

@@ -49,7 +49,7 @@ from besman.learning.demonstration import Demonstration, DemonstrationError, loa
 from besman.learning.imitation import HAND_MARKERS, imitate
 from besman.learning.labelling import DemonstrationSegment, cluster, ground_truth_segments, label_few_shot
 from besman.learning.policy_search import CMAES, WarmStart, policy_search
-from besman.learning.retargeting import WorkspaceMap, fit_workspace_map, retarget
+from besman.learning.retargeting import fit_workspace_map, retarget
 from besman.learning.segmentation import segment
 from besman.sim.blocks import (
     BLOCKS,
@@ -349,8 +349,12 @@ class _Run:
         _write_json(cache, {"schema_version": SCHEMA_VERSION, "method": method, "blocks": blocks})
         return blocks
 
-    def shapes(self, blocks: dict[str, list[dict]]) -> tuple[dict[str, Path], WorkspaceMap]:
-        """Each block imitated (Cartesian, the person's frame) and retargeted to AILA (joint space)."""
+    def shapes(self, blocks: dict[str, list[dict]]) -> dict[str, Path]:
+        """Each block imitated (Cartesian, the person's frame) and retargeted to AILA (joint space); the
+        workspace map goes with each shape's provenance."""
+        shapes = {block: self.work / "shapes" / f"{block}.json" for block in BLOCKS}
+        if all(path.is_file() for path in shapes.values()):
+            return shapes
         demos = {path.name: demo for path, demo in zip(self.files, self.demos, strict=True)}
         imitated = {}
         for block, instances in blocks.items():
@@ -370,9 +374,7 @@ class _Run:
             arm.site_pose(starts["reach"].goal).position,
             arm.site_pose(starts["carry"].goal).position,
         )
-        shapes = {}
-        for block in BLOCKS:
-            path = self.work / "shapes" / f"{block}.json"
+        for block, path in shapes.items():
             if not path.is_file():
                 start = starts[block]
                 shape = retarget(
@@ -380,8 +382,7 @@ class _Run:
                 )
                 shape.provenance["segments"] = blocks[block]
                 shape.save(path)
-            shapes[block] = path
-        return shapes, mapping
+        return shapes
 
     def refine(self, shapes: dict[str, Path]) -> dict[str, list[dict]]:
         """Each block's K training tasks refined by CMA-ES (each task's result cached)."""
@@ -421,9 +422,7 @@ class _Run:
                     results[block].append(read_json(path, LearnError))
         return results
 
-    def templates(
-        self, shapes: dict[str, Path], refined: dict[str, list[dict]], mapping: WorkspaceMap
-    ) -> tuple[str, ...]:
+    def templates(self, shapes: dict[str, Path], refined: dict[str, list[dict]]) -> tuple[str, ...]:
         pool = SkillTemplatePool(self.out)
         for block in BLOCKS:
             prototype = MovementPrimitive.load(shapes[block])
@@ -441,7 +440,7 @@ class _Run:
                     "robot": self.settings.robot,
                     "recordings": self.record["recordings"],
                     "instances": prototype.provenance.get("segments", []),
-                    "workspace_map": mapping.as_dict(),
+                    "workspace_map": prototype.provenance["retargeting"]["map"],
                     "training": [
                         {
                             "tau": run["tau"],
@@ -478,9 +477,9 @@ def learn(
     run.claim_output(force)
     movements = run.segmentations()
     blocks = run.labels(movements)
-    shapes, mapping = run.shapes(blocks)
+    shapes = run.shapes(blocks)
     refined = run.refine(shapes)
-    templates = run.templates(shapes, refined, mapping)
+    templates = run.templates(shapes, refined)
     from besman.learning.pipeline_plots import write_figures  # matplotlib only when it is needed
 
     figures = write_figures(run.out, run.demos, run.files, movements, blocks, refined)

@@ -21,7 +21,7 @@ smallest joint-limit margin and the configurations in collision - and :class:`Re
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -29,9 +29,16 @@ import numpy as np
 from besman.sim.arm import Arm
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
 from besman.sim.executor import Executor
-from besman.sim.manipulation import OPEN, PickPlacePlan, PlanningError, plan_pick, plan_place
+from besman.sim.manipulation import (
+    DEFAULT_PLAN,
+    OPEN,
+    PickPlacePlan,
+    PlanningError,
+    plan_pick,
+    plan_place,
+)
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
-from besman.sim.pick_place import PICK_PLACE_BOUNDS, settle_and_measure
+from besman.sim.pick_place import LIFT_HEIGHT, PICK_PLACE_BOUNDS, settle_and_measure
 from besman.sim.primitives import shaped
 from besman.sim.world import DEFAULT_BOX, TABLE, World, tabletop_world
 from besman.skills import MovementPrimitive
@@ -46,8 +53,6 @@ BLOCK_PARAMETERS = {
     "return": ("place_x", "place_y"),
 }
 BLOCKS = tuple(BLOCK_PARAMETERS)
-DEFAULT_PLAN = PickPlacePlan()
-LIFT_HEIGHT = 0.05  # m the box must rise above its resting height for a grasp to count
 TIMEOUT = 15.0  # s of simulated time for one motion
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 PATH_STRIDE = 5  # control cycles between the hand positions that measure path length and jerk (100 Hz)
@@ -129,12 +134,11 @@ class BlockStart:
     planned start and end, and the planned motions after it (primitives, or "grasp"/"release")."""
 
     block: str
-    tau: np.ndarray
     state: np.ndarray
     start: np.ndarray
     goal: np.ndarray
     after: tuple[MovementPrimitive | str, ...]
-    place_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    place_xy: np.ndarray
 
 
 def snapshot(world: World) -> np.ndarray:
@@ -148,17 +152,19 @@ def restore(world: World, state: np.ndarray) -> None:
     mujoco.mj_forward(world.model, world.data)
 
 
-def _run(executor: Executor, step: MovementPrimitive | Motion, what: str) -> None:
-    motion = step if isinstance(step, Motion) else FollowPrimitive(step)
-    executor.run(motion, timeout=TIMEOUT)
-    if motion.status is not MotionStatus.SUCCEEDED:
-        raise PlanningError(f"the planned {what} failed at {motion.name}: {motion.message}")
-
-
-def _gripper(step: str) -> GripperMotion:
+def _motion(step: MovementPrimitive | str) -> Motion:
+    """A planned step as a motion: a primitive to follow, or "grasp" / "release" the box."""
     if step == "grasp":
         return GripperMotion("grasp", opening=0.0, expect_grasp=True, grasp_object=DEFAULT_BOX.name)
-    return GripperMotion("release", opening=OPEN)
+    if step == "release":
+        return GripperMotion("release", opening=OPEN)
+    return FollowPrimitive(step)
+
+
+def _run(executor: Executor, step: MovementPrimitive | str, what: str) -> None:
+    motion = executor.run(_motion(step), timeout=TIMEOUT)
+    if motion.status is not MotionStatus.SUCCEEDED:
+        raise PlanningError(f"the planned {what} failed at {motion.name}: {motion.message}")
 
 
 def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -> BlockStart:
@@ -174,12 +180,11 @@ def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -
     home = executor.position.copy()
     settings = executor.reference_settings
     pick = plan_pick(executor.arm, home, item, object_xy, plan, settings)
-    _run(executor, _gripper("release"), "opening")
+    _run(executor, "release", "opening")
 
     def start(goal, after) -> BlockStart:
         return BlockStart(
             block,
-            block_bounds(block).check(tau)[0],
             snapshot(world),
             executor.position.copy(),
             goal,
@@ -189,12 +194,12 @@ def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -
 
     if block == "reach":
         return start(pick.approach.dmp.goal.copy(), (pick.descend, "grasp", pick.lift))
-    for step in (pick.approach, pick.descend, _gripper("grasp"), pick.lift):
+    for step in (pick.approach, pick.descend, "grasp", pick.lift):
         _run(executor, step, "grasp")
     put = plan_place(executor.arm, pick.lifted, item, place_xy, plan, settings)
     if block == "carry":
         return start(put.transport.dmp.goal.copy(), (put.place, "release", put.retreat))
-    for step in (put.transport, put.place, _gripper("release"), put.retreat):
+    for step in (put.transport, put.place, "release", put.retreat):
         _run(executor, step, "placement")
     return start(home, ())
 
@@ -227,8 +232,7 @@ def rollout(world: World, start: BlockStart, shape: MovementPrimitive) -> BlockO
         return BlockOutcome(False, "carry: the box slipped out of the hand", **measures)
     resting = TABLE.height + item.half_height
     for step in start.after:
-        motion = _gripper(step) if isinstance(step, str) else FollowPrimitive(step)
-        executor.run(motion, timeout=TIMEOUT)
+        motion = executor.run(_motion(step), timeout=TIMEOUT)
         if motion.status is not MotionStatus.SUCCEEDED:
             return BlockOutcome(False, f"{motion.name} after the {start.block}: {motion.message}", **measures)
     if start.block == "reach":

@@ -70,6 +70,9 @@ class PickPlacePlan:
         return np.array(astuple(self))
 
 
+DEFAULT_PLAN = PickPlacePlan()
+
+
 @dataclass(frozen=True)
 class _Leg:
     """A planned stretch of an episode: three hand poses of one orientation, the joint configurations that

@@ -41,6 +41,7 @@ PICK_PLACE_BOUNDS = TaskBounds(
     ("object_x", "object_y", "place_x", "place_y"), (0.45, -0.15, 0.45, -0.48), (0.62, 0.00, 0.62, -0.34)
 )
 FAILURE_REWARD = -1.0
+LIFT_HEIGHT = 0.05  # m the box must rise above its resting height for a grasp to count
 
 
 @dataclass(frozen=True)
@@ -151,7 +152,7 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
         if motion.name in ("lift", "transport", "place") and not executor.hand.holds(item.name):
             return _failure(world, motion.name, "the box slipped out of the hand", monitor)
         if motion.name == "lift":
-            if monitor.highest < TABLE.height + item.half_height + 0.05:
+            if monitor.highest < TABLE.height + item.half_height + LIFT_HEIGHT:
                 return _failure(world, motion.name, "the box was not lifted", monitor)
             monitor.grasped = True
     placed = settle_and_measure(world, item, place_xy, monitor.update)

@@ -23,12 +23,10 @@ from py_trees.common import Access, Status
 
 from besman.learning.online import Refinement, refine_online, uncertainty
 from besman.sim.blocks import BlockStart, snapshot
-from besman.sim.manipulation import PickPlacePlan, PlanningError, plan_pick, plan_place
+from besman.sim.manipulation import DEFAULT_PLAN, PickPlacePlan, PlanningError, plan_pick, plan_place
 from besman.sim.primitives import shaped
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
-
-DEFAULT_PLAN = PickPlacePlan()
 
 
 class PerceiveObject(SimulationBehaviour):
@@ -113,25 +111,7 @@ class _Plan(SimulationBehaviour):
                 shape = template.instantiate(tau)
             motions = self._planned(where, item, shape)
             if template is not None and self.refine_above is not None:
-                spread = uncertainty(template, tau)
-                if spread > self.refine_above:
-                    moves = getattr(motions, self.outputs[0])
-                    start = BlockStart(
-                        self.block,
-                        tau,
-                        snapshot(executor.world),
-                        executor.position.copy(),
-                        moves.dmp.goal.copy(),
-                        self.after(motions),
-                        where,
-                    )
-                    self.refinement = refine_online(executor.world, start, template, tau)
-                    motions = self._planned(where, item, self.refinement.primitive)
-                    note = (
-                        f"; refined online (spread {spread:.2f}): {self.refinement.rollouts} rollouts, "
-                        "reward "
-                        f"{self.refinement.mean_reward:.3f} -> {self.refinement.best_reward:.3f}"
-                    )
+                motions, note = self._refined(motions, template, tau, where, item)
         except (PlanningError, ValueError) as error:
             self.feedback_message = str(error)
             return Status.FAILURE
@@ -140,6 +120,28 @@ class _Plan(SimulationBehaviour):
         learned = f" ({self.outputs[0]} from template {self.template!r})" if template is not None else ""
         self.feedback_message = "planned " + ", ".join(self.outputs) + learned + note
         return Status.SUCCESS
+
+    def _refined(self, motions, template, tau: np.ndarray, where: np.ndarray, item) -> tuple[Any, str]:
+        """The motions planned again with the template's instance refined online, if the template's spread
+        at tau is above ``refine_above``; and a note for the feedback."""
+        spread = uncertainty(template, tau)
+        if spread <= self.refine_above:
+            return motions, ""
+        executor = self.executor
+        start = BlockStart(
+            self.block,
+            snapshot(executor.world),
+            executor.position.copy(),
+            getattr(motions, self.outputs[0]).dmp.goal.copy(),
+            self.after(motions),
+            where,
+        )
+        self.refinement = refine_online(executor.world, start, template, tau)
+        note = (
+            f"; refined online (spread {spread:.2f}): {self.refinement.rollouts} rollouts, "
+            f"reward {self.refinement.mean_reward:.3f} -> {self.refinement.best_reward:.3f}"
+        )
+        return self._planned(where, item, self.refinement.primitive), note
 
     def _planned(self, where: np.ndarray, item, shape):
         executor = self.executor
