@@ -71,8 +71,10 @@ class Executor:
         groups: Sequence[str] = ("waist", "right_arm"),
         gripper: str | None = "right_gripper",
         config: ExecutorConfig = ExecutorConfig(),
+        name: str = "right",
     ) -> None:
-        self.world, self.config = world, config
+        self.world, self.config, self.name = world, config, name
+        self.companions: dict[str, Executor] = {}  # other arms run in lockstep (add_arm)
         steps = config.control_period / world.model.opt.timestep
         if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
             raise InputError(
@@ -179,74 +181,92 @@ class Executor:
 
     def advance(self, cycles: int) -> MotionStatus:
         """Runs ``cycles`` control cycles (e.g. those between two ticks of a behaviour tree) as one chunk
-        and returns the motion's status.
+        and returns the motion's status; the arms added by :meth:`add_arm` run the same cycles, in lockstep.
 
-        The motion's commands for the whole chunk are computed first (they never depend on measurements),
-        then the physics steps through them back to back (MuJoCo's data stays warm in the cache), then the
-        motion judges the chunk's cycles in order. A motion that ends inside a chunk has had its commands
-        run to the chunk's end: the same commands for a success (it holds at its goal), at most one chunk
-        more of its motion for a failure. Faults are checked at the chunk's end: warnings, NaN and runaway
-        speeds persist once they occur, so none is missed, and a motion that ended on a faulty state fails
-        with the fault."""
-        motion = self.motion
-        if motion is None or motion.status is not MotionStatus.RUNNING:
-            self._hold(cycles)
-            return MotionStatus.SUCCEEDED if motion is None else motion.status
-        first, commands, stream = motion.cycles + 1, [], self.stream
-        # Arm motions leave the gripper where it is: its command is the same all chunk long.
-        gripper_moves = motion.moves_gripper
-        grippers = []
-        for _ in range(cycles):
-            motion.cycles += 1
-            result = motion.command(self)
-            if result not in WORKING:
-                motion.finish(MotionStatus.FAILED, f"Ruckig could not compute a command ({result.name})")
-                break
-            commands.append(stream.state_lists())
-            if gripper_moves:
-                grippers.append(self.gripper_stream.state_lists())
-        if commands:
-            states = np.array(commands)
-            gripper = np.array(grippers) if gripper_moves else self._gripper_as_is(len(commands))
-            measured, fingers = self._simulate(states, gripper, record_fingers=gripper_moves)
-        if len(commands) < cycles:
-            self._hold(cycles - len(commands))  # after a failed command the arm holds its last one
-        if motion.status is MotionStatus.RUNNING:  # every cycle was commanded
-            motion.judge(self, Chunk(first, states, measured, gripper if gripper_moves else None, fingers))
-            fault = self.monitor.check(self.world.data)
-            if fault is not None:  # a judgement on a faulty state does not count
-                motion.finish(MotionStatus.FAILED, f"simulation fault: {fault}")
-        return motion.status
+        Each arm's motion computes its commands for the whole chunk first (they never depend on
+        measurements), then the physics steps through them back to back (MuJoCo's data stays warm in the
+        cache), then each motion judges the chunk's cycles in order. A motion that ends inside a chunk has
+        had its commands run to the chunk's end: the same commands for a success (it holds at its goal), at
+        most one chunk more of its motion for a failure. Faults are checked at the chunk's end: warnings,
+        NaN and runaway speeds persist once they occur, so none is missed, and a motion that ended on a
+        faulty state fails with the fault."""
+        members = (self, *self.companions.values())
+        plans = [member._commands(cycles) for member in members]
+        results = _simulate(self.world, self.substeps, members, plans)
+        for member, plan, (measured, fingers) in zip(members, plans, results, strict=True):
+            member._judge(plan, measured, fingers)
+        return self.motion.status if self.motion is not None else MotionStatus.SUCCEEDED
+
+    def add_arm(self, name: str, groups: Sequence[str], gripper: str | None = None) -> Executor:
+        """Another arm of the same robot (``groups``, ``gripper``), with its own Ruckig streams, motions and
+        command log, run in lockstep with this executor: its control cycles are this one's (:meth:`advance`
+        commands both, steps the physics once for both, then judges both), so the two arms move in
+        parallel. Leaves reach it by ``name`` (:meth:`arm_executor`)."""
+        if name in self.arms:
+            raise InputError(f"arm {name!r} is already driven by this executor")
+        other = Executor(self.world, groups, gripper, self.config, name=name)
+        self.companions[name] = other
+        return other
+
+    @property
+    def arms(self) -> dict[str, Executor]:
+        """This executor and the arms added to it, by name."""
+        return {self.name: self, **self.companions}
+
+    def arm_executor(self, name: str | None) -> Executor:
+        """The executor of arm ``name`` (None: this one)."""
+        if name is None or name == self.name:
+            return self
+        if name not in self.companions:
+            raise KeyError(f"no arm {name!r} in this run; arms: {', '.join(self.arms)}")
+        return self.companions[name]
 
     def tick(self) -> MotionStatus:
         """One control cycle: command, simulate, judge, check for faults; returns the motion's status."""
         return self.advance(1)
 
-    def _simulate(
-        self, states: np.ndarray, gripper: np.ndarray | None, record_fingers: bool = False
-    ) -> tuple[np.ndarray, np.ndarray | None]:
-        """Steps the physics through commanded arm states (n, 3, dofs) and gripper states (n, 3, 1; None
-        without a gripper), logging each cycle; returns the arm's measured joint positions after each cycle
-        and (if asked) the fingers' velocities."""
-        model, data, arm = self.world.model, self.world.data, self.arm
-        ctrl, qpos, qvel, step = data.ctrl, data.qpos, data.qvel, mujoco.mj_step
-        actuators, joints, fingers_at = arm.actuator_indices, arm.qpos_indices, self._finger_dofs
-        gripper_actuator, substeps, rows = self._gripper_actuator, range(self.substeps), len(states)
-        openings = np.zeros(rows) if gripper is None else gripper[:, 0, 0]
-        times, measured = np.empty(rows), np.empty((rows, arm.dofs))
-        fingers = np.empty((rows, len(fingers_at))) if record_fingers else None
-        for row in range(rows):
-            ctrl[actuators] = states[row, 0]
-            if gripper is not None:
-                ctrl[gripper_actuator] = openings[row]
-            for _ in substeps:
-                step(model, data)
-            times[row] = data.time
-            measured[row] = qpos[joints]
-            if fingers is not None:
-                fingers[row] = qvel[fingers_at]
-        self.log.append(times, states, openings)
-        return measured, fingers
+    def _commands(self, cycles: int) -> _Commands:
+        """This arm's commands for the next ``cycles`` cycles: its motion's, held after a motion that
+        failed to command (or with no motion running)."""
+        motion = self.motion
+        running = motion is not None and motion.status is MotionStatus.RUNNING
+        gripper_moves = running and motion.moves_gripper
+        commands, grippers = [], []
+        if running:
+            stream = self.stream
+            for _ in range(cycles):
+                motion.cycles += 1
+                result = motion.command(self)
+                if result not in WORKING:
+                    motion.finish(MotionStatus.FAILED, f"Ruckig could not compute a command ({result.name})")
+                    break
+                commands.append(stream.state_lists())
+                if gripper_moves:
+                    grippers.append(self.gripper_stream.state_lists())
+        judged = running and motion.status is MotionStatus.RUNNING  # every cycle was commanded
+        held = cycles - len(commands)  # after a failed command the arm holds its last one
+        states = np.array(commands + [self.stream.state_lists()] * held)
+        # Arm motions leave the gripper where it is: its command is the same all chunk long.
+        gripper = np.array(grippers) if gripper_moves and judged else self._gripper_as_is(cycles)
+        return _Commands(
+            motion if judged else None,
+            motion.cycles - cycles + 1 if judged else 0,
+            states,
+            gripper,
+            gripper_moves and judged,
+        )
+
+    def _judge(self, plan: _Commands, measured: np.ndarray, fingers: np.ndarray | None) -> None:
+        motion = plan.motion
+        if motion is None:
+            return
+        motion.judge(
+            self,
+            Chunk(plan.first, plan.states, measured, plan.gripper if plan.gripper_moves else None, fingers),
+        )
+        fault = self.monitor.check(self.world.data)
+        if fault is not None:  # a judgement on a faulty state does not count
+            motion.finish(MotionStatus.FAILED, f"simulation fault: {fault}")
 
     def _gripper_as_is(self, cycles: int) -> np.ndarray | None:
         """The gripper's commanded state repeated for ``cycles`` cycles (None without a gripper)."""
@@ -254,10 +274,60 @@ class Executor:
             return None
         return np.repeat([self.gripper_stream.state_lists()], cycles, axis=0)
 
-    def _hold(self, cycles: int) -> None:
-        """``cycles`` cycles with the commands as they are."""
-        states = np.repeat([self.stream.state_lists()], cycles, axis=0)
-        self._simulate(states, self._gripper_as_is(cycles))
+
+@dataclass(frozen=True)
+class _Commands:
+    """One arm's commands for a chunk: states (n, 3, dofs), gripper states (n, 3, 1; None without a
+    gripper), and the motion that judges them (None when nothing is to be judged) from its cycle ``first``."""
+
+    motion: Motion | None
+    first: int
+    states: np.ndarray
+    gripper: np.ndarray | None
+    gripper_moves: bool
+
+
+def _simulate(
+    world: World, substeps: int, members: Sequence[Executor], plans: Sequence[_Commands]
+) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """Steps the physics through the arms' commanded states, cycle by cycle, logging each arm's cycles;
+    returns per arm its measured joint positions after each cycle and (for an arm whose gripper moves) the
+    fingers' velocities."""
+    model, data, step = world.model, world.data, mujoco.mj_step
+    ctrl, qpos, qvel = data.ctrl, data.qpos, data.qvel
+    rows = len(plans[0].states)
+    # Per arm: its actuators and commanded positions, its gripper actuator and commanded openings (or None).
+    drives = [
+        (
+            member.arm.actuator_indices,
+            plan.states[:, 0],
+            member._gripper_actuator,
+            None if plan.gripper is None else plan.gripper[:, 0, 0],
+        )
+        for member, plan in zip(members, plans, strict=True)
+    ]
+    measured = [np.empty((rows, member.arm.dofs)) for member in members]
+    fingers = [
+        np.empty((rows, len(member._finger_dofs))) if plan.gripper_moves else None
+        for member, plan in zip(members, plans, strict=True)
+    ]
+    joints = [member.arm.qpos_indices for member in members]
+    times, cycle_steps = np.empty(rows), range(substeps)
+    for row in range(rows):
+        for actuators, positions, gripper_actuator, openings in drives:
+            ctrl[actuators] = positions[row]
+            if openings is not None:
+                ctrl[gripper_actuator] = openings[row]
+        for _ in cycle_steps:
+            step(model, data)
+        times[row] = data.time
+        for index, member_joints in enumerate(joints):
+            measured[index][row] = qpos[member_joints]
+            if fingers[index] is not None:
+                fingers[index][row] = qvel[members[index]._finger_dofs]
+    for member, plan, (_, _, _, openings) in zip(members, plans, drives, strict=True):
+        member.log.append(times, plan.states, np.zeros(rows) if openings is None else openings)
+    return list(zip(measured, fingers, strict=True))
 
 
 RANGE_SLACK = 1e-3  # rad or m

@@ -33,6 +33,17 @@ OPEN = 0.045  # finger opening (m per finger) before grasping and for releasing:
 # The fingers close across a pair of the box's faces (yaw 0 or 90 deg, up to 15 deg off); the hand's own
 # symmetry makes yaws 180 deg apart the same grasp.
 GRASP_YAWS = np.radians([0.0, 15.0, -15.0, -90.0, -75.0, 75.0])
+LIFT = 0.06  # m a held object is lifted at least (another hand lets go of it below)
+FINGER_CLEARANCE = 0.005  # m the open fingers keep from the object on each side as they descend around it
+
+
+def grasp_yaws(item: GraspableObject) -> np.ndarray:
+    """The yaws of :data:`GRASP_YAWS` at which the open fingers fit around ``item`` (standing axis-aligned):
+    its width along the closing direction plus the clearance on both sides within the 2 x :data:`OPEN`
+    aperture. A cube of 6 cm allows them all; a bar only the yaws across it."""
+    half_x, half_y = item.size[0], item.size[1] if item.shape == "box" else item.size[0]
+    width = 2 * (half_x * np.abs(np.cos(GRASP_YAWS)) + half_y * np.abs(np.sin(GRASP_YAWS)))
+    return GRASP_YAWS[width + 2 * FINGER_CLEARANCE <= 2 * OPEN]
 
 
 @dataclass(frozen=True)
@@ -97,25 +108,31 @@ def plan_leg(
     duration: float,
     allowed: tuple[str, ...],
     settings: ReferenceSettings,
+    yaws: np.ndarray = GRASP_YAWS,
 ) -> _Leg | None:
-    """The best hand yaw for three top-down poses reached one after the other from the configuration
-    ``start``: each reachable (solved from the previous one), collision-free except with ``allowed`` bodies,
-    and the joint-space moves between them (``names``) staying within :data:`MAX_DEVIATION` of a straight
-    line. Among the yaws that work, the one whose moves keep farthest from the joint limits (the first of
-    :data:`GRASP_YAWS` on a tie).
+    """The best hand yaw among ``yaws`` for three top-down poses reached one after the other from the
+    configuration ``start``: each reachable (solved from the previous one), collision-free except with
+    ``allowed`` bodies, and the joint-space moves between them (``names``) staying within
+    :data:`MAX_DEVIATION` of a straight line. Among the yaws that work, the one whose moves keep farthest
+    from the joint limits (the first of ``yaws`` on a tie). Where no yaw reaches the poses, the yaws turned
+    by 180 deg are tried (the same grasps, by the hand's symmetry): a left arm reaches those of a right
+    arm mirrored.
 
     Building a yaw's moves is the expensive part, so it is a branch and bound: both moves start at a pose's
     configuration, so the closer of the first two configurations to a limit bounds the yaw's clearance from
     above; yaws are built in order of that bound, and one that cannot beat the best so far is not built.
     The choice is the same as building every yaw."""
     candidates = []
-    for index, yaw in enumerate(GRASP_YAWS):
-        orientation = top_down(yaw)
-        configurations = _pose_configurations(arm, start, positions, orientation, allowed)
-        if configurations is not None:
-            bound = min(arm.limit_margin(configurations[0]), arm.limit_margin(configurations[1]))
-            candidates.append((bound, index, orientation, configurations))
-    best, best_index = None, len(GRASP_YAWS)
+    for turned in (yaws, yaws + np.pi):
+        for index, yaw in enumerate(turned):
+            orientation = top_down(yaw)
+            configurations = _pose_configurations(arm, start, positions, orientation, allowed)
+            if configurations is not None:
+                bound = min(arm.limit_margin(configurations[0]), arm.limit_margin(configurations[1]))
+                candidates.append((bound, index, orientation, configurations))
+        if candidates:
+            break
+    best, best_index = None, len(yaws)
     for bound, index, orientation, configurations in sorted(candidates, key=lambda c: (-c[0], c[1])):
         if best is not None and (bound, -index) <= (best.clearance, -best_index):
             break  # neither this yaw nor any after it can beat the best
@@ -225,12 +242,17 @@ def plan_pick(
     settings: ReferenceSettings = DEFAULT_SETTINGS,
     approach: MovementPrimitive | None = None,
 ) -> PickMotions:
-    """Motions that grasp ``item`` standing on the table at ``object_xy`` from the configuration ``start``
-    and lift it to carrying height. The approach is a point-to-point move, or the joint-space primitive
-    ``approach`` (a learned reach) moved to this approach's end points
+    """Motions that grasp ``item`` at ``object_xy`` (standing on the table) or ``(x, y, z)`` (its centre
+    at height z, e.g. held by another hand) from the configuration ``start`` and lift it to carrying
+    height (an object in the air at least :data:`LIFT` up). The approach is a point-to-point move,
+    or the joint-space primitive ``approach`` (a learned reach) moved to this approach's end points
     (:func:`~besman.sim.primitives.shaped`)."""
-    object_xy = np.asarray(object_xy, dtype=float)
+    where = np.asarray(object_xy, dtype=float)
+    object_xy = where[:2]
     grasp_z, carry_z, _ = heights(item, plan)
+    if len(where) == 3:
+        grasp_z = where[2] + plan.grasp_height
+        carry_z = max(carry_z, grasp_z + LIFT)
     leg = plan_leg(
         arm,
         start,
@@ -243,6 +265,7 @@ def plan_pick(
         plan.descend_time,
         allowed=(item.name,),
         settings=settings,
+        yaws=grasp_yaws(item),
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down grasp of the object")
@@ -275,6 +298,7 @@ def plan_place(
         plan.descend_time,
         allowed=(item.name,),
         settings=settings,
+        yaws=grasp_yaws(item),
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down placement at the target")
@@ -288,3 +312,38 @@ def plan_place(
     if lowest - item.half_height - plan.grasp_height < SHELF.height + 0.01:
         raise PlanningError(f"the transport would sweep the box {lowest:.3f} m low over the shelf")
     return PlaceMotions(transport, *leg.primitives)
+
+
+def plan_move(
+    arm: Arm,
+    start: np.ndarray,
+    *,
+    position=None,
+    rise: float | None = None,
+    home: bool = False,
+    allowed: tuple[str, ...] = (),
+    duration: float = 1.0,
+) -> MovementPrimitive:
+    """A move of the hand from the configuration ``start``, exactly one of: to ``position`` (x, y, z) with
+    the hand's orientation kept (point to point in joint space), straight up by ``rise`` m, or back to the
+    robot's home configuration. The end must be collision-free (except with ``allowed`` bodies, e.g. an
+    object in the hand); a rise must stay straight."""
+    if sum((position is not None, rise is not None, home)) != 1:
+        raise InputError("a move goes to a position, rises, or goes home: exactly one of them")
+    if home:
+        return point_to_point("home", start, arm.world.home(arm.qpos_indices), arm, duration)
+    hand = arm.site_pose(start)
+    if rise is not None:
+        goal_position = hand.position + [0.0, 0.0, rise]
+        primitive = straight_line("rise", start, goal_position, hand.quaternion, arm, duration)
+        if primitive is None:
+            raise PlanningError(f"no straight rise of {rise:g} m from here")
+        return primitive
+    goal_position = finite_array("position", position)
+    result = arm.solve_ik(goal_position, hand.quaternion, initial=start, restarts=4)
+    if not result.success:
+        raise PlanningError(f"the hand cannot reach {np.round(goal_position, 3).tolist()} as it is turned")
+    hit = arm.collisions(result.qpos, allowed)
+    if hit:
+        raise PlanningError(f"the hand at {np.round(goal_position, 3).tolist()} would collide: {hit[0]}")
+    return point_to_point("move", start, result.qpos, arm, duration)

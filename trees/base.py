@@ -11,7 +11,11 @@ and :meth:`RoleBehaviour.role_keys` say where a role lives, for messages and for
 
 Behaviours that touch the simulation (:class:`SimulationBehaviour`) get the
 :class:`~besman.sim.executor.Executor` in ``setup(executor=...)`` (``BehaviourTree.setup(executor=...)``
-passes it to every behaviour) and read the simulated clock from it, so timers run in simulated time.
+passes it to every behaviour) and read the simulated clock from it, so timers run in simulated time. On a
+robot with several arms driven in lockstep (:meth:`~besman.sim.executor.Executor.add_arm`), ``arm`` names the
+one a behaviour drives or looks at (default: the executor's own). A behaviour about an object takes its
+name, or a blackboard key (starting with ``/``) that holds the name when the behaviour runs, so one subtree
+can work through several objects (:class:`~besman.trees.loops.ForEach`).
 """
 
 from __future__ import annotations
@@ -70,14 +74,43 @@ class RoleBehaviour(py_trees.behaviour.Behaviour):
 
 
 class SimulationBehaviour(RoleBehaviour):
-    """A behaviour that needs the executor (given to ``setup``)."""
+    """A behaviour that needs the executor (given to ``setup``) of its ``arm`` (None: the executor's own)."""
 
-    def __init__(self, name: str, *, namespace: str = "", remap: Mapping[str, str] | None = None) -> None:
+    def __init__(
+        self,
+        name: str,
+        *,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+        arm: str | None = None,
+    ) -> None:
         super().__init__(name, namespace=namespace, remap=remap)
+        self.arm = arm
         self.executor: Executor | None = None
+        self._object: str | None = None
 
     def setup(self, **kwargs: Any) -> None:
-        self.executor = executor_of(self.name, kwargs)
+        executor = executor_of(self.name, kwargs)
+        try:
+            self.executor = executor.arm_executor(self.arm)
+        except KeyError as error:
+            raise InputError(f"{self.name}: {error.args[0]}") from None
+
+    def use_object(self, object: str | None) -> None:
+        """Sets the object the behaviour is about: a name, or a blackboard key (``/...``) holding one."""
+        self._object = object
+        if object is not None and object.startswith("/"):
+            self.blackboard.register_key(key=object, access=Access.READ)
+
+    @property
+    def object(self) -> str | None:
+        """The object's name now (read from the blackboard if :meth:`use_object` was given a key)."""
+        reference = self._object
+        if reference is None or not reference.startswith("/"):
+            return reference
+        if not self.blackboard.exists(reference):
+            raise KeyError(f"no object name at {reference}")
+        return str(self.blackboard.get(reference))
 
     @property
     def time(self) -> float:

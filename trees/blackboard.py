@@ -7,6 +7,9 @@ key (:mod:`besman.trees.base`). Defaults:
 - ``/task/place`` - the place target (x, y); written by the runner (``--set place=x,y``), read by
   ``Place`` through its ``target`` remapped to it.
 - ``/task/<name>`` - numbers given on the command line (``--set name=...``); read by leaves remapped to them.
+  A demo may put a list of items there for a loop (``/task/objects`` of the sort demo: ``{object, target}``).
+- ``/<ns>/<field>`` - the current item's fields, written by ``ForEach`` (namespace ``<ns>``) before each run
+  of its child (``/sort/object``, ``/sort/target``).
 - ``/<ns>/object_position`` - (x, y, z) of the object; ``PerceiveObject`` writes, ``PlanGrasp`` reads.
 - ``/<ns>/approach``, ``/<ns>/descend``, ``/<ns>/lift`` - movement primitives; ``PlanGrasp`` writes, the
   ``ExecutePrimitive`` leaves of the grasp subtree read.
@@ -39,9 +42,12 @@ def set_task_values(values: Mapping[str, object]) -> None:
     for name, value in values.items():
         key = f"{TASK_NAMESPACE}/{name}"
         client.register_key(key=key, access=py_trees.common.Access.WRITE)
-        client.set(
-            key, np.asarray(value, dtype=float) if not isinstance(value, str) else value, overwrite=True
+        # Numbers become arrays; names and structured values (a list of items for a loop) stay as they are.
+        structured = isinstance(value, str) or (
+            isinstance(value, list | tuple)
+            and (not value or any(isinstance(item, Mapping) for item in value))
         )
+        client.set(key, value if structured else np.asarray(value, dtype=float), overwrite=True)
 
 
 def task_keys_read(root: py_trees.behaviour.Behaviour) -> set[str]:

@@ -15,9 +15,10 @@ py_trees has no file format of its own. A besman tree file is::
 
 Node types (:data:`~besman.trees.nodes.NODE_TYPES`, derived from the classes): the py_trees composites
 (``Sequence``, ``Selector``, ``Parallel``) and decorators (``Retry``, ``Repeat``, ``Inverter``,
-``SuccessIsFailure``, ``FailureIsSuccess``, ``SuccessIsRunning``, ``Timeout`` in simulated time), besman's
-leaves (``ExecutePrimitive``, ``InstantiateSkillTemplate``, ``Gripper``, ``ObjectGrasped``, ``ObjectAt``,
-``AtPose``, ``Wait``, ``PerceiveObject``, ``PlanGrasp``, ``PlanPlace``, ``PlanReturn``) and subtree idioms
+``SuccessIsFailure``, ``FailureIsSuccess``, ``SuccessIsRunning``, ``Timeout`` in simulated time), the loop
+``ForEach``, besman's leaves (``ExecutePrimitive``, ``InstantiateSkillTemplate``, ``Gripper``,
+``ObjectGrasped``, ``ObjectAt``, ``AtPose``, ``ArmsApart``, ``Wait``, ``PerceiveObject``, ``PlanGrasp``,
+``PlanPlace``, ``PlanReturn``, ``PlanMove``, ``AimThrow``, ``Throw``) and subtree idioms
 (``Grasp``, ``Place``, ``ReturnHome``, ``GraspThenPlace``); ``besman tree nodes`` lists them all with their
 parameters (:mod:`besman.trees.reference`). Primitives are referenced by the path of their JSON file;
 templates by ``module:attribute`` (an object with ``instantiate(tau)``), or a pool and a ``template_name``:

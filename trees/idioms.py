@@ -41,8 +41,11 @@ def grasp(
     pool: Mapping[str, Any] | None = None,
     template: str | None = None,
     refine_above: float | None = None,
+    arm: str | None = None,
+    offset: tuple[float, float] | None = None,
 ) -> py_trees.behaviour.Behaviour:
-    """A subtree that grasps ``object`` and lifts it; up to ``attempts`` tries from fresh perception. With a
+    """A subtree that grasps ``object`` (a name, or a key holding one) with ``arm`` (default: the executor's
+    own), ``offset`` from its centre, and lifts it; up to ``attempts`` tries from fresh perception. With a
     ``pool`` and a ``template``, the approach is the template's (see :class:`PlanGrasp`)."""
     remap = _checked(name, remap or {}, PlanGrasp)
     primitives = PlanGrasp.role_keys(namespace, remap)
@@ -54,17 +57,19 @@ def grasp(
             PlanGrasp(
                 "plan grasp",
                 object=object,
+                offset=offset,
                 plan=plan,
                 namespace=namespace,
                 remap=remap,
+                arm=arm,
                 **_learned(pool, template, refine_above),
             ),
-            Gripper("open", action="open"),
-            ExecutePrimitive("approach", remap={"primitive": primitives["approach"]}),
-            ExecutePrimitive("descend", remap={"primitive": primitives["descend"]}),
-            Gripper("close", action="close", expect_grasp=True, object=object),
-            ExecutePrimitive("lift", remap={"primitive": primitives["lift"]}),
-            ObjectGrasped("grasped?", object=object),
+            Gripper("open", action="open", arm=arm),
+            ExecutePrimitive("approach", remap={"primitive": primitives["approach"]}, arm=arm),
+            ExecutePrimitive("descend", remap={"primitive": primitives["descend"]}, arm=arm),
+            Gripper("close", action="close", expect_grasp=True, object=object, arm=arm),
+            ExecutePrimitive("lift", remap={"primitive": primitives["lift"]}, arm=arm),
+            ObjectGrasped("grasped?", object=object, arm=arm),
         ],
     )
     tree = py_trees.decorators.Retry(name, steps, num_failures=attempts)
@@ -75,6 +80,8 @@ def grasp(
         "namespace": namespace,
         "attempts": attempts,
         "remap": remap,
+        "arm": arm,
+        "offset": offset,
         **_learned_spec(pool, template, refine_above),
     }
     return tree
@@ -91,9 +98,11 @@ def place(
     pool: Mapping[str, Any] | None = None,
     template: str | None = None,
     refine_above: float | None = None,
+    arm: str | None = None,
 ) -> py_trees.behaviour.Behaviour:
-    """A subtree that puts the held ``object`` down at the target (role ``target``, or the key ``target``).
-    With a ``pool`` and a ``template``, the transport is the template's (see :class:`PlanPlace`)."""
+    """A subtree that puts the held ``object`` down at the target (role ``target``, or the key ``target``)
+    with ``arm``. With a ``pool`` and a ``template``, the transport is the template's (see
+    :class:`PlanPlace`)."""
     own_remap = _checked(name, remap or {}, PlanPlace)
     remap = own_remap | ({"target": target} if target is not None else {})
     primitives = PlanPlace.role_keys(namespace, remap)
@@ -107,12 +116,13 @@ def place(
                 plan=plan,
                 namespace=namespace,
                 remap=remap,
+                arm=arm,
                 **_learned(pool, template, refine_above),
             ),
-            _while_holding("transport", object, primitives["transport"]),
-            _while_holding("set down", object, primitives["place"]),
-            Gripper("release", action="open"),
-            ExecutePrimitive("retreat", remap={"primitive": primitives["retreat"]}),
+            _while_holding("transport", object, primitives["transport"], arm),
+            _while_holding("set down", object, primitives["place"], arm),
+            Gripper("release", action="open", arm=arm),
+            ExecutePrimitive("retreat", remap={"primitive": primitives["retreat"]}, arm=arm),
             ObjectAt("placed?", object=object, **_wiring(ObjectAt, namespace, remap)),
         ],
     )
@@ -123,6 +133,7 @@ def place(
         "namespace": namespace,
         "target": target,
         "remap": own_remap,
+        "arm": arm,
         **_learned_spec(pool, template, refine_above),
     }
     return tree
@@ -218,11 +229,15 @@ def _wiring(leaf: type[RoleBehaviour], namespace: str, remap: Mapping[str, str])
     return {"namespace": namespace, "remap": {role: key for role, key in remap.items() if role in leaf.roles}}
 
 
-def _while_holding(name: str, object: str, primitive_key: str) -> py_trees.behaviour.Behaviour:
-    """Executes the primitive at ``primitive_key`` while a guard checks that ``object`` stays in the hand; a
-    slip fails it."""
-    motion = ExecutePrimitive(name, remap={"primitive": primitive_key})
-    guard = py_trees.decorators.SuccessIsRunning("keep holding", ObjectGrasped("holding?", object=object))
+def _while_holding(
+    name: str, object: str, primitive_key: str, arm: str | None = None
+) -> py_trees.behaviour.Behaviour:
+    """Executes the primitive at ``primitive_key`` with ``arm`` while a guard checks that ``object`` stays in
+    its hand; a slip fails it."""
+    motion = ExecutePrimitive(name, remap={"primitive": primitive_key}, arm=arm)
+    guard = py_trees.decorators.SuccessIsRunning(
+        "keep holding", ObjectGrasped("holding?", object=object, arm=arm)
+    )
     return py_trees.composites.Parallel(
         f"{name} holding {object}",
         policy=py_trees.common.ParallelPolicy.SuccessOnSelected(children=[motion]),

@@ -82,10 +82,11 @@ class ExecutePrimitive(MotionLeaf):
         primitive: the primitive; if None it is read from the blackboard role ``primitive``.
         timeout: simulated seconds after which a still-running motion fails (default: none).
         namespace, remap: blackboard wiring (see :mod:`besman.trees.base`).
+        arm: the arm that executes it, on a robot driven with several (default: the executor's own).
     """
 
     roles: ClassVar = {"primitive": Access.READ}
-    parameters: ClassVar = {"primitive": "primitive", "timeout": "float>0"}
+    parameters: ClassVar = {"primitive": "primitive", "timeout": "float>0", "arm": "str"}
 
     def __init__(
         self,
@@ -95,8 +96,9 @@ class ExecutePrimitive(MotionLeaf):
         timeout: float | None = None,
         namespace: str = "",
         remap: Mapping[str, str] | None = None,
+        arm: str | None = None,
     ) -> None:
-        super().__init__(name, timeout=timeout, namespace=namespace, remap=remap)
+        super().__init__(name, timeout=timeout, namespace=namespace, remap=remap, arm=arm)
         self.primitive = primitive
         if primitive is None:
             self.use("primitive")
@@ -113,8 +115,8 @@ class ExecutePrimitive(MotionLeaf):
 class Gripper(MotionLeaf):
     """Opens (``action="open"``) or closes (``"close"``) the gripper; SUCCESS when the fingers settle.
 
-    With ``expect_grasp`` (closing only) it fails unless both fingers touch ``object`` and it moves with the
-    hand.
+    With ``expect_grasp`` (closing only) it fails unless both fingers touch ``object`` (a name, or a key
+    holding one) and it moves with the hand; ``arm`` chooses the hand on a robot driven with several arms.
     """
 
     parameters: ClassVar = {
@@ -123,6 +125,7 @@ class Gripper(MotionLeaf):
         "expect_grasp": "bool",
         "object": "str",
         "timeout": "float>0",
+        "arm": "str",
     }
 
     def __init__(
@@ -134,13 +137,15 @@ class Gripper(MotionLeaf):
         expect_grasp: bool = False,
         object: str | None = None,
         timeout: float | None = 5.0,
+        arm: str | None = None,
     ) -> None:
         if action not in ("open", "close"):
             raise InputError(f"{name}: action must be 'open' or 'close', got {action!r}")
         if expect_grasp and (action != "close" or object is None):
             raise InputError(f"{name}: expect_grasp needs action='close' and an object")
-        super().__init__(name, timeout=timeout)
-        self.action, self.expect_grasp, self.object = action, expect_grasp, object
+        super().__init__(name, timeout=timeout, arm=arm)
+        self.action, self.expect_grasp = action, expect_grasp
+        self.use_object(object)
         self.opening = (OPEN if action == "open" else 0.0) if opening is None else float(opening)
 
     def make_motion(self) -> Motion:

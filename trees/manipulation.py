@@ -5,6 +5,8 @@
   primitives planned from the robot's current commanded state (:func:`besman.sim.manipulation.plan_pick`).
 - :class:`PlanPlace` reads the ``target`` (x, y) and writes ``transport``, ``place`` and ``retreat``.
 - :class:`PlanReturn` writes ``home``, a learned return to the robot's home configuration.
+- :class:`PlanMove` writes ``motion``: the hand to a position, straight up, or the arm home (presenting an
+  object to the other hand, letting go of it, making room).
 
 The approach, the transport and the return can come from skill templates learned from people
 (:mod:`besman.learning.pipeline`), instantiated for the tau the leaf perceives and refined online where the
@@ -15,7 +17,7 @@ The subtrees that use them are in :mod:`besman.trees.idioms`.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -23,7 +25,14 @@ from py_trees.common import Access, Status
 
 from besman.learning.online import Refinement, refine_online, uncertainty
 from besman.sim.blocks import BlockStart, snapshot
-from besman.sim.manipulation import DEFAULT_PLAN, PickPlacePlan, PlanningError, plan_pick, plan_place
+from besman.sim.manipulation import (
+    DEFAULT_PLAN,
+    PickPlacePlan,
+    PlanningError,
+    plan_move,
+    plan_pick,
+    plan_place,
+)
 from besman.sim.primitives import shaped
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
@@ -39,13 +48,14 @@ class PerceiveObject(SimulationBehaviour):
         self, name: str, *, object: str, namespace: str = "", remap: Mapping[str, str] | None = None
     ):
         super().__init__(name, namespace=namespace, remap=remap)
-        self.object = object
+        self.use_object(object)
         self.use("object_position")
 
     def update(self) -> Status:
-        position = self.executor.world.object_pose(self.object).position
+        item = self.object
+        position = self.executor.world.object_pose(item).position
         self.blackboard.set("object_position", position, overwrite=True)
-        self.feedback_message = f"{self.object} at {position.round(3).tolist()}"
+        self.feedback_message = f"{item} at {position.round(3).tolist()}"
         return Status.SUCCESS
 
 
@@ -62,7 +72,13 @@ class _Plan(SimulationBehaviour):
     source = ""
     block = ""
     planner: ClassVar = None
-    parameters: ClassVar = {"object": "str", "pool": "pool", "template": "str", "refine_above": "float>=0"}
+    parameters: ClassVar = {
+        "object": "str",
+        "pool": "pool",
+        "template": "str",
+        "refine_above": "float>=0",
+        "arm": "str",
+    }
 
     def __init__(
         self,
@@ -75,9 +91,11 @@ class _Plan(SimulationBehaviour):
         refine_above: float | None = None,
         namespace: str = "",
         remap: Mapping[str, str] | None = None,
+        arm: str | None = None,
     ):
-        super().__init__(name, namespace=namespace, remap=remap)
-        self.object, self.plan = object, plan
+        super().__init__(name, namespace=namespace, remap=remap, arm=arm)
+        self.plan = plan
+        self.use_object(object)
         self.pool, self.template, self.refine_above = pool, template, refine_above
         _check_template(name, pool, template)
         if refine_above is not None and pool is None:
@@ -93,6 +111,10 @@ class _Plan(SimulationBehaviour):
     def tau(self, where: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    def goal(self, source: np.ndarray, item: str) -> np.ndarray:
+        """Where the hand goes, from the value of the ``source`` role."""
+        raise NotImplementedError
+
     def after(self, motions) -> tuple:
         raise NotImplementedError
 
@@ -103,15 +125,16 @@ class _Plan(SimulationBehaviour):
             self.feedback_message = f"no object {self.object!r} in the world"
             return Status.FAILURE
         where = np.asarray(self.blackboard.get(self.source), dtype=float)[:2]
+        goal = self.goal(np.asarray(self.blackboard.get(self.source), dtype=float), item.name)
         self.refinement, template, shape, note = None, None, None, ""
         try:
             if self.pool is not None:
                 template = self.pool[self.template]
                 tau = self.tau(where)
                 shape = template.instantiate(tau)
-            motions = self._planned(where, item, shape)
+            motions = self._planned(goal, item, shape)
             if template is not None and self.refine_above is not None:
-                motions, note = self._refined(motions, template, tau, where, item)
+                motions, note = self._refined(motions, template, tau, where, goal, item)
         except (PlanningError, ValueError) as error:
             self.feedback_message = str(error)
             return Status.FAILURE
@@ -121,7 +144,9 @@ class _Plan(SimulationBehaviour):
         self.feedback_message = "planned " + ", ".join(self.outputs) + learned + note
         return Status.SUCCESS
 
-    def _refined(self, motions, template, tau: np.ndarray, where: np.ndarray, item) -> tuple[Any, str]:
+    def _refined(
+        self, motions, template, tau: np.ndarray, where: np.ndarray, goal: np.ndarray, item
+    ) -> tuple[Any, str]:
         """The motions planned again with the template's instance refined online, if the template's spread
         at tau is above ``refine_above``; and a note for the feedback."""
         spread = uncertainty(template, tau)
@@ -141,18 +166,21 @@ class _Plan(SimulationBehaviour):
             f"; refined online (spread {spread:.2f}): {self.refinement.rollouts} rollouts, "
             f"reward {self.refinement.mean_reward:.3f} -> {self.refinement.best_reward:.3f}"
         )
-        return self._planned(where, item, self.refinement.primitive), note
+        return self._planned(goal, item, self.refinement.primitive), note
 
-    def _planned(self, where: np.ndarray, item, shape):
+    def _planned(self, goal: np.ndarray, item, shape):
         executor = self.executor
         return type(self).planner(
-            executor.arm, executor.position, item, where, self.plan, executor.reference_settings, shape
+            executor.arm, executor.position, item, goal, self.plan, executor.reference_settings, shape
         )
 
 
 class PlanGrasp(_Plan):
-    """Plans approach, descend and lift for the object at ``object_position``."""
+    """Plans approach, descend and lift for the object at ``object_position``, grasped ``offset`` (x, y in
+    m, default its centre) from its centre: where it stands on the table or, held by another hand, in the
+    air."""
 
+    parameters: ClassVar = {**_Plan.parameters, "offset": "floats[2]"}
     source = "object_position"
     block = "reach"
     planner = plan_pick
@@ -163,8 +191,38 @@ class PlanGrasp(_Plan):
         "lift": Access.WRITE,
     }
 
+    def __init__(
+        self,
+        name: str,
+        *,
+        object: str,
+        offset: Sequence[float] | None = None,
+        plan: PickPlacePlan = DEFAULT_PLAN,
+        pool: Mapping[str, Any] | None = None,
+        template: str | None = None,
+        refine_above: float | None = None,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+        arm: str | None = None,
+    ):
+        super().__init__(
+            name,
+            object=object,
+            plan=plan,
+            pool=pool,
+            template=template,
+            refine_above=refine_above,
+            namespace=namespace,
+            remap=remap,
+            arm=arm,
+        )
+        self.offset = np.zeros(2) if offset is None else np.asarray(offset, dtype=float)
+
     def tau(self, where: np.ndarray) -> np.ndarray:
         return where  # the reach's tau: the object's x, y
+
+    def goal(self, source: np.ndarray, item: str) -> np.ndarray:
+        return np.r_[source[:2] + self.offset, source[2]]
 
     def after(self, motions) -> tuple:
         return (motions.descend, "grasp", motions.lift)
@@ -187,6 +245,15 @@ class PlanPlace(_Plan):
         # The carry's tau: where the box was picked (the hand is above it, holding it) and the target.
         hand = self.executor.arm.site_pose(self.executor.position).position
         return np.r_[hand[:2], where]
+
+    def goal(self, source: np.ndarray, item: str) -> np.ndarray:
+        # The object goes to the target where the hand holds it: a grasp off its centre (a bar taken over
+        # at one end) moves the hand by as much.
+        executor = self.executor
+        if executor.hand is None or not executor.hand.holds(item):
+            return source[:2]  # nothing held: the transport's guard fails it, and says why
+        hand = executor.arm.site_pose(executor.arm.measured()).position
+        return source[:2] + hand[:2] - executor.world.object_pose(item).position[:2]
 
     def after(self, motions) -> tuple:
         return (motions.place, "release", motions.retreat)
@@ -227,6 +294,63 @@ class PlanReturn(SimulationBehaviour):
             return Status.FAILURE
         self.blackboard.set("home", primitive, overwrite=True)
         self.feedback_message = f"planned the return home from template {self.template!r}"
+        return Status.SUCCESS
+
+
+class PlanMove(SimulationBehaviour):
+    """Writes ``motion``: the hand of ``arm`` to ``position`` (x, y, z) as it is turned, straight up by
+    ``rise`` m, or the arm to its ``home`` configuration (exactly one), planned from the commanded
+    configuration; the end must not collide, except with the held ``object``."""
+
+    roles: ClassVar = {"motion": Access.WRITE}
+    parameters: ClassVar = {
+        "position": "floats[3]",
+        "rise": "float>0",
+        "home": "bool",
+        "object": "str",
+        "duration": "float>0",
+        "arm": "str",
+    }
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        position: Sequence[float] | None = None,
+        rise: float | None = None,
+        home: bool = False,
+        object: str | None = None,
+        duration: float = 1.0,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+        arm: str | None = None,
+    ):
+        super().__init__(name, namespace=namespace, remap=remap, arm=arm)
+        if sum((position is not None, rise is not None, bool(home))) != 1:
+            raise InputError(f"{name}: give exactly one of position, rise and home: true")
+        self.position = None if position is None else np.asarray(position, dtype=float)
+        self.rise, self.home, self.duration = rise, bool(home), duration
+        self.use_object(object)
+        self.use("motion")
+
+    def update(self) -> Status:
+        executor = self.executor
+        held = self.object
+        try:
+            motion = plan_move(
+                executor.arm,
+                executor.position,
+                position=self.position,
+                rise=self.rise,
+                home=self.home,
+                allowed=() if held is None else (held,),
+                duration=self.duration,
+            )
+        except ValueError as error:
+            self.feedback_message = str(error)
+            return Status.FAILURE
+        self.blackboard.set("motion", motion, overwrite=True)
+        self.feedback_message = f"planned {motion.name}"
         return Status.SUCCESS
 
 

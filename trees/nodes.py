@@ -21,10 +21,12 @@ from typing import Any
 import py_trees
 
 from besman.trees.base import RoleBehaviour
-from besman.trees.conditions import AtPose, ObjectAt, ObjectGrasped
+from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
 from besman.trees.idioms import grasp, grasp_then_place, place, return_home
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
-from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanPlace, PlanReturn
+from besman.trees.loops import ForEach
+from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanPlace, PlanReturn
+from besman.trees.throwing import AimThrow, Throw
 from besman.trees.timing import SimTimeout, Wait
 
 WIRING = {"namespace": "str", "remap": "keys"}
@@ -153,6 +155,7 @@ NODE_TYPES: dict[str, NodeType] = {
         {"duration": Param.of("float>0", required=True)},
         "one",
     ),
+    "ForEach": NodeType(ForEach, _params(ForEach, {"items": "str", "namespace": "str"}), "one"),
     **{
         cls.__name__: leaf(cls)
         for cls in (
@@ -162,21 +165,33 @@ NODE_TYPES: dict[str, NodeType] = {
             ObjectGrasped,
             ObjectAt,
             AtPose,
+            ArmsApart,
             Wait,
             PerceiveObject,
             PlanGrasp,
             PlanPlace,
             PlanReturn,
+            PlanMove,
+            AimThrow,
+            Throw,
         )
     },
     "Grasp": subtree(
         grasp,
-        {"object": "str", "namespace": "str", "attempts": "int>=1", "remap": "keys", **_LEARNED},
+        {
+            "object": "str",
+            "namespace": "str",
+            "attempts": "int>=1",
+            "remap": "keys",
+            "arm": "str",
+            "offset": "floats[2]",
+            **_LEARNED,
+        },
         PlanGrasp,
     ),
     "Place": subtree(
         place,
-        {"object": "str", "namespace": "str", "target": "str", "remap": "keys", **_LEARNED},
+        {"object": "str", "namespace": "str", "target": "str", "remap": "keys", "arm": "str", **_LEARNED},
         PlanPlace,
     ),
     "ReturnHome": subtree(

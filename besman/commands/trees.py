@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from collections.abc import Sequence
 
 from besman.commands.viewing import serve, tabletop, view_options
@@ -145,20 +146,97 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from besman.trees import grasp_then_place
+    from besman.trees.gallery import DEMOS, demo
 
+    if args.list:
+        for entry in DEMOS.values():
+            print(f"{entry.name}: {entry.title} ({entry.path.name})")
+        return 0
+    chosen = demo(args.name)  # an unknown name is refused with the list, before any work
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",))
+    options = {}
+    if args.target is not None:
+        if chosen.name != "throw":
+            raise InputError(f"--target is for the throw demo, not {chosen.name}")
+        options["target"] = _parse_sets([f"target={args.target}"])["target"]
+    if chosen.name == "grasp-then-place":
+        return _grasp_then_place_demo(args)
+    if not args.json:
+        print(f"{chosen.name}: {chosen.title} ({chosen.path})")
+    summary, viewers = _watched_demo(args, chosen, options)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(_demo_outcome(summary))
+    return serve(viewers, 0 if summary["success"] else 1)
+
+
+def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple[dict, list]:
+    """Runs a gallery demo; with --view, watched in the browser at --speed (the viewer stays open)."""
+    from besman.trees.gallery import run_demo
+
+    if not args.view:
+        return run_demo(chosen.name, args.seed, options, log=args.log), []
+    from besman.sim.viewer import Viewer
+    from besman.trees.watching import Watch
+
+    prepared = chosen.prepare(args.seed, options, None)
+    viewer = Viewer(prepared.runner.executor.world.model, host=args.host, port=args.port)
+    print(f"viewer: {viewer.url} (the run goes at {args.speed:g}x real time)", file=sys.stderr, flush=True)
+    prepared.runner.observe = _both(prepared.runner.observe, Watch(viewer, args.speed))
+    try:
+        result = prepared.runner.run(log=args.log)
+    except BaseException:
+        viewer.close()
+        raise
+    return {"demo": chosen.name, "seed": args.seed, **prepared.judge(result)}, [viewer]
+
+
+def _both(first, second):
+    if first is None:
+        return second
+
+    def observe(runner, record):
+        first(runner, record)
+        second(runner, record)
+
+    return observe
+
+
+def _demo_outcome(summary: dict) -> str:
+    head = "SUCCESS" if summary["success"] else f"FAILURE ({summary['status']})"
+    if "miss_m" in summary:
+        landing = summary["landing"]
+        where = (
+            "no landing"
+            if landing is None
+            else f"landed at {landing}, {summary['miss_m']} m from {summary['target']}"
+        )
+        detail = where
+    else:
+        errors = ", ".join(
+            f"{name} {error * 100:.1f} cm" for name, error in summary["placement_errors_m"].items()
+        )
+        detail = f"placement errors {errors}; {summary['slipped'] or 'no box'} slipped and was grasped again"
+    text = f"{head}: {detail}; {summary['sim_time_s']:.1f} s simulated in {summary['wall_time_s']:.1f} s"
+    if summary["failed_node"]:
+        text += f"\nfailed at {summary['failed_node']}: {summary['message']}"
+    return text
+
+
+def _grasp_then_place_demo(args: argparse.Namespace) -> int:
+    from besman.trees.gallery import README_CONFIGURATION, demo
+
     if not args.json:  # --json prints the summary alone
         print("AILA grasps the box on the table and places it on the shelf (grasp-then-place tree)")
-    summary, viewers = tabletop(
-        args, grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, args.log
-    )
+    values = README_CONFIGURATION if args.seed is None else {}
+    summary, viewers = tabletop(args, str(demo("grasp-then-place").path), values, args.log)
     _print_summary(summary, args.json)
     if not args.json:
         print(
-            "next: watch it in the browser (besman demo --view), or run the same tree as a file elsewhere on "
-            "the table with a log:\n"
+            "next: watch it in the browser (besman demo --view), see the other demos (besman demo --list), "
+            "or run the same tree as a file elsewhere on the table with a log:\n"
             "  besman run examples/trees/grasp_then_place.yaml --set object=0.5,-0.05 --set place=0.58,-0.44 "
             "--log run.jsonl"
         )
@@ -207,7 +285,19 @@ def register(commands) -> None:
     view_options(run)
     run.set_defaults(handler=_run)
 
-    demo = commands.add_parser("demo", help="grasp-then-place at a default configuration")
+    demo = commands.add_parser(
+        "demo", help="run a demo of the gallery (besman demo --list); default: grasp-then-place"
+    )
+    demo.add_argument(
+        "name", nargs="?", default="grasp-then-place", help="the demo (default: grasp-then-place)"
+    )
+    demo.add_argument("--list", action="store_true", help="list the demos and exit")
+    demo.add_argument(
+        "--seed", type=int, default=None, help="draws the demo's configuration (default: the README's)"
+    )
+    demo.add_argument(
+        "--target", default=None, metavar="X,Y", help="where the throw demo aims (m on the floor)"
+    )
     demo.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
     demo.add_argument("--json", action="store_true", help="print the summary as JSON")
     view_options(demo)

@@ -1,0 +1,69 @@
+"""Pictures of the demo gallery for the README: each demo run with a fixed seed, drawn where it shows most.
+
+    python examples/gallery_pictures.py [--out docs/gallery]
+
+Each picture is MuJoCo's offscreen rendering of the demo's world at one tick of its run (sort: the last box
+being set down beside the others; throw: the ball in flight; grasp-then-place: the box carried to the
+shelf), from a camera aimed at what the demo is about.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported
+
+from pathlib import Path
+
+import mujoco
+
+from besman.robots.render import save_png
+from besman.trees.gallery import demo
+
+# demo -> (seed, fraction of the run's ticks at which to draw, camera: look-at, distance, azimuth, elevation)
+SHOTS = {
+    "grasp-then-place": (0, 0.55, (0.55, -0.25, 0.9), 1.5, 200.0, -25.0),
+    "sort": (0, 0.93, (0.55, -0.25, 0.9), 1.6, 205.0, -30.0),
+    "throw": (3, 0.5, (-2.5, -1.5, 0.8), 7.0, 135.0, -15.0),
+}
+
+
+def picture(name: str, out: Path) -> Path:
+    seed, fraction, lookat, distance, azimuth, elevation = SHOTS[name]
+    prepared = demo(name).prepare(seed, {}, None)
+    world = prepared.runner.executor.world
+    frames = []
+
+    def snapshot(runner, record):
+        frames.append(world.data.qpos.copy())
+
+    previous = prepared.runner.observe
+    prepared.runner.observe = lambda runner, record: (
+        previous and previous(runner, record),
+        snapshot(runner, record),
+    )
+    prepared.runner.run()
+    data = mujoco.MjData(world.model)
+    data.qpos[:] = frames[int(fraction * (len(frames) - 1))]
+    mujoco.mj_forward(world.model, data)
+    camera = mujoco.MjvCamera()
+    camera.lookat[:], camera.distance, camera.azimuth, camera.elevation = lookat, distance, azimuth, elevation
+    with mujoco.Renderer(world.model, 480, 640) as renderer:
+        renderer.update_scene(data, camera)
+        image = renderer.render()
+    return save_png(image, out / f"{name}.png")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default="docs/gallery", help="folder of the PNGs")
+    args = parser.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for name in SHOTS:
+        print(picture(name, out))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,202 @@
+"""The demo gallery and what it needed: loops over blackboard lists, object names from the blackboard, arms in
+lockstep, planned moves, the arms' distance guard, throws executed in a tree, disturbances."""
+
+import argparse
+import json
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import py_trees
+import pytest
+from helpers import run_cli
+from py_trees.common import Status
+
+from besman.sim import Executor, tabletop_world
+from besman.sim.executor import limit_violations
+from besman.sim.throw_execution import ThrowingExecutor
+from besman.sim.throwing import ThrowingTask
+from besman.sim.world import TABLE, GraspableObject
+from besman.skills.pool import SkillTemplatePool
+from besman.trees.blackboard import set_task_values
+from besman.trees.conditions import ArmsApart, ObjectAt
+from besman.trees.gallery import DEMOS, SORT_PLACES, demo, run_demo
+from besman.trees.leaves import ExecutePrimitive
+from besman.trees.loops import ForEach
+from besman.trees.manipulation import PlanMove
+from besman.trees.runner import Runner
+
+ROOT = Path(__file__).resolve().parents[1]
+THROWING_POOL = ROOT / "docs" / "results" / "throwing" / "pool"
+
+
+class _Seen(py_trees.behaviour.Behaviour):
+    """Records the blackboard's /loop/object at each run; fails on "bad"."""
+
+    def __init__(self):
+        super().__init__("seen")
+        self.seen = []
+        self.client = self.attach_blackboard_client("seen")
+        self.client.register_key("/loop/object", access=py_trees.common.Access.READ)
+
+    def update(self):
+        self.seen.append(self.client.get("/loop/object"))
+        return Status.FAILURE if self.seen[-1] == "bad" else Status.SUCCESS
+
+
+def _loop(items):
+    py_trees.blackboard.Blackboard.clear()
+    set_task_values({"objects": items})
+    child = _Seen()
+    root = ForEach("each", child, items="/task/objects", namespace="loop")
+    for _ in range(10):
+        root.tick_once()
+        if root.status is not Status.RUNNING:
+            break
+    return root, child.seen
+
+
+def test_for_each_runs_its_child_once_per_item_in_order():
+    root, seen = _loop([{"object": "a"}, {"object": "b"}, {"object": "c"}])
+    assert root.status is Status.SUCCESS and seen == ["a", "b", "c"]
+    assert root.feedback_message == "all 3 items done"
+
+
+def test_for_each_stops_at_the_first_failure_and_refuses_what_is_not_a_list():
+    root, seen = _loop([{"object": "a"}, {"object": "bad"}, {"object": "c"}])
+    assert root.status is Status.FAILURE and seen == ["a", "bad"]
+    assert root.feedback_message.startswith("item 2 of 3 failed")
+    root, seen = _loop([])
+    assert root.status is Status.SUCCESS and seen == []
+    py_trees.blackboard.Blackboard.clear()
+    set_task_values({"objects": "red"})
+    root = ForEach("each", _Seen(), items="/task/objects", namespace="loop")
+    root.tick_once()
+    assert root.status is Status.FAILURE and "must hold a list of mappings" in root.feedback_message
+
+
+def test_a_leaf_reads_its_object_from_the_blackboard():
+    py_trees.blackboard.Blackboard.clear()
+    world = tabletop_world((GraspableObject("red"), GraspableObject("blue")))
+    world.place_on("blue", TABLE.name, 0.5, -0.1)
+    set_task_values({"which": "blue"})
+    check = ObjectAt("there?", object="/task/which", position=[0.5, -0.1])
+    assert Runner(check, Executor(world)).run().status == "SUCCESS"
+    set_task_values({"which": "red"})
+    assert Runner(check, Executor(world)).run().status == "FAILURE"
+
+
+def test_two_arms_move_in_lockstep_and_the_guard_sees_their_distance():
+    """The left arm, added to the right arm's executor, moves while the right one does: one physics, both
+    arms commanded every cycle within their limits, both at their goals."""
+    py_trees.blackboard.Blackboard.clear()
+    world = tabletop_world()
+    right = Executor(world, ("right_arm",), "right_gripper")
+    left = right.add_arm("left", ("left_arm",), "left_gripper")
+    up = np.array([0.05, 0.0, 0.1])  # both hands 10 cm up and 5 cm forward from home, as they are turned
+    goal_left = left.arm.site_pose(left.position).position + up
+    goal_right = right.arm.site_pose(right.position).position + up
+    root = py_trees.composites.Sequence(
+        "both",
+        memory=True,
+        children=[
+            PlanMove("plan left", position=goal_left, namespace="left", arm="left"),
+            PlanMove("plan right", position=goal_right, namespace="right"),
+            py_trees.composites.Parallel(
+                "together",
+                py_trees.common.ParallelPolicy.SuccessOnAll(),
+                children=[
+                    ExecutePrimitive(
+                        "left moves", namespace="left", remap={"primitive": "/left/motion"}, arm="left"
+                    ),
+                    ExecutePrimitive("right moves", namespace="right", remap={"primitive": "/right/motion"}),
+                ],
+            ),
+            ArmsApart("apart?", other="left", margin=0.05),
+        ],
+    )
+    result = Runner(root, right).run()
+    assert result.status == "SUCCESS", result.message
+    assert np.allclose(left.arm.site_pose(left.measured_position()).position, goal_left, atol=0.01)
+    assert np.allclose(right.arm.site_pose(right.measured_position()).position, goal_right, atol=0.01)
+    assert len(left.log) == len(right.log) and np.array_equal(left.log.times, right.log.times)
+    assert limit_violations(left.log, left) == [] and limit_violations(right.log, right) == []
+    far = ArmsApart("far?", other="left", margin=2.0)
+    assert Runner(far, right).run().status == "FAILURE" and "apart (less than 200 cm)" in far.feedback_message
+    with pytest.raises(ValueError, match="no arm 'third'"):
+        ExecutePrimitive("x", arm="third").setup(executor=right)
+
+
+def test_a_throw_in_a_tree_lands_where_the_tasks_rollout_lands():
+    task = ThrowingTask(variant="paper")
+    theta = SkillTemplatePool(THROWING_POOL)["throw"].distribution(np.array([-5.0, -2.0]))[0]
+    expected = task.evaluate(theta[None], np.array([[-5.0, -2.0]])).details[0].landing
+    executor = ThrowingExecutor(task)
+    executor.wind_up()
+    flight = executor.start_throw(theta)
+    while executor.advance(10).value == "running":
+        pass
+    np.testing.assert_allclose(flight.landing, expected, atol=1e-9)
+    with pytest.raises(ValueError, match="96 parameters"):
+        executor.start_throw(theta[:5])
+
+
+@pytest.mark.parametrize("name", list(DEMOS))
+def test_every_demo_tree_passes_tree_check(capsys, name):
+    code, out, _ = run_cli(capsys, "tree", "check", str(demo(name).path))
+    assert code == 0 and out.strip().endswith(": ok")
+
+
+def test_demo_list_and_bad_demo_input(capsys):
+    code, out, _ = run_cli(capsys, "demo", "--list")
+    assert code == 0 and [line.split(":")[0] for line in out.splitlines()] == list(DEMOS)
+    code, _, err = run_cli(capsys, "demo", "juggle")
+    assert code == 2 and "no demo 'juggle'; demos: grasp-then-place, sort, throw" in err
+    code, _, err = run_cli(capsys, "demo", "sort", "--target", "1,2")
+    assert code == 2 and "--target is for the throw demo" in err
+    code, _, err = run_cli(capsys, "demo", "throw", "--target", "0,0")
+    assert code == 2 and "--target [0.0, 0.0]" in err and "outside" in err
+
+
+def test_throw_demo_from_the_command_line(capsys):
+    code, out, _ = run_cli(capsys, "demo", "throw", "--target=-3.2,-3.4", "--json")
+    summary = json.loads(out)
+    assert code == 0 and summary["success"] and summary["miss_m"] <= 0.5
+    assert summary["target"] == [-3.2, -3.4]
+
+
+def test_sort_demo_is_the_same_run_for_the_same_seed():
+    first, second = run_demo("sort", 5), run_demo("sort", 5)
+    for summary in (first, second):
+        summary.pop("wall_time_s")
+    assert first == second and first["success"] and first["slipped"] is not None
+
+
+def test_a_demo_runs_watched_in_the_browser():
+    """--view: the run goes at --speed with the viewer serving the page; the summary is the same."""
+    from besman.commands.trees import _watched_demo
+
+    args = argparse.Namespace(view=True, host="127.0.0.1", port=0, speed=100.0, seed=2, log=None)
+    summary, viewers = _watched_demo(args, demo("throw"), {})
+    try:
+        assert summary["success"]
+        with urllib.request.urlopen(viewers[0].url, timeout=10) as page:
+            assert page.status == 200
+    finally:
+        viewers[0].close()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(DEMOS))
+def test_every_demo_succeeds_in_ten_seeded_configurations(name):
+    """The issue's acceptance: grasp-then-place and sort 10/10 (sort with a box taken out of the hand each
+    time), throw within 0.5 m of the target 10/10 (>= 9 asked)."""
+    summaries = [run_demo(name, seed) for seed in range(10)]
+    failed = [(s["seed"], s["status"], s.get("message")) for s in summaries if not s["success"]]
+    assert failed == []
+    if name == "sort":
+        for summary in summaries:
+            assert summary["slipped"] in SORT_PLACES
+            assert max(summary["placement_errors_m"].values()) <= 0.02
+    if name == "throw":
+        assert max(s["miss_m"] for s in summaries) <= 0.5

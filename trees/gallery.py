@@ -1,0 +1,275 @@
+"""The demo gallery: manipulation demos, each a tree file in ``examples/trees`` and the world it needs.
+
+A :class:`Demo` names its tree file and prepares a run of it for a seed: the world with the robot and
+objects the tree needs, the values on the blackboard (``/task/...``), whatever happens to the run that the
+robot does not plan (a :mod:`disturbance <besman.sim.disturbances>`), and how its outcome is judged
+(``success`` in the summary, measured in the simulation, not taken from the tree's own status alone). The
+same seed gives the same configuration and the same run. ``besman demo --list`` lists :data:`DEMOS`;
+``besman demo NAME [--seed N] [--view]`` runs one.
+
+- ``grasp-then-place``: AILA takes the box from the table to the shelf (without a seed: the README's
+  configuration).
+- ``sort``: three boxes, each to its own place on the shelf, in a loop over the blackboard's list of objects
+  (:class:`~besman.trees.loops.ForEach`); one box is taken out of the hand during its transport and set down
+  elsewhere on the table, and the tree grasps it again.
+- ``throw``: the PA-10 throws the ball at a target (``--target X,Y``, or drawn from the template's box) with
+  the throwing skill template of the paper's experiment.
+
+The tree files live in the source checkout (``examples/trees``), beside the pool they name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import py_trees
+
+from besman.sim.disturbances import TakeFromHand
+from besman.sim.executor import Executor
+from besman.sim.world import TABLE, GraspableObject, tabletop_world
+from besman.skills.errors import InputError
+from besman.trees.blackboard import set_task_values
+from besman.trees.files import load_tree
+from besman.trees.runner import Runner, RunResult
+from besman.trees.tabletop import summary as tabletop_summary
+from besman.trees.tabletop import tabletop_run
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "trees"
+PLACED = 0.02  # m: an object counts as placed within this distance of its place
+README_CONFIGURATION = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
+Observer = Callable[[Runner, dict], None]
+
+
+@dataclass(frozen=True)
+class DemoRun:
+    """A prepared run: the runner (not started), the configuration it was given, and the judge of its
+    result (a summary with ``success``)."""
+
+    runner: Runner
+    settings: dict
+    judge: Callable[[RunResult], dict]
+
+
+@dataclass(frozen=True)
+class Demo:
+    """A demo of the gallery: its name, one line on what it shows, its tree file, and how a run is
+    prepared (``prepare(seed, options, observe)``)."""
+
+    name: str
+    title: str
+    tree: str
+    prepare: Callable[[int | None, Mapping, Observer | None], DemoRun]
+
+    @property
+    def path(self) -> Path:
+        return EXAMPLES / self.tree
+
+
+# -- grasp-then-place --------------------------------------------------------------------------------------
+
+
+def _grasp_then_place(seed: int | None, options: Mapping, observe: Observer | None) -> DemoRun:
+    values = dict(README_CONFIGURATION) if seed is None else {}
+    runner, settings = tabletop_run(EXAMPLES / "grasp_then_place.yaml", values, seed=seed)
+    runner.observe = observe
+
+    def judge(result: RunResult) -> dict:
+        outcome = tabletop_summary(runner, settings, result)
+        success = result.status == "SUCCESS" and outcome["placement_error_m"] <= PLACED
+        return {"success": success, **outcome, "settings": settings}
+
+    return DemoRun(runner, settings, judge)
+
+
+# -- sort --------------------------------------------------------------------------------------------------
+
+SORT_OBJECTS = (
+    GraspableObject("red", rgba=(0.80, 0.15, 0.12, 1.0)),
+    GraspableObject("green", rgba=(0.20, 0.62, 0.25, 1.0)),
+    GraspableObject("blue", rgba=(0.15, 0.35, 0.80, 1.0)),
+)
+# Each box's own place on the shelf, 14-15 cm apart (the open hand spans 9 cm, plus the fingers). The
+# carried box clears the shelf by 6 cm, as high as a box that stands there, so the far place is filled
+# first and no transport passes over a placed box.
+SORT_PLACES = {"blue": (0.52, -0.50), "red": (0.45, -0.37), "green": (0.60, -0.37)}
+# Where the boxes stand: x, y from low to high (the right arm's top-down grasps from its home pose).
+SORT_TABLE_LOW, SORT_TABLE_HIGH = (0.47, -0.16), (0.64, 0.0)
+SORT_SPACING = 0.12  # m between the boxes on the table: the open fingers keep clear of the neighbours
+
+
+def _free_spots(rng: np.random.Generator, count: int, taken=()) -> list[tuple[float, float]]:
+    """``count`` spots on the table (between :data:`SORT_TABLE_LOW` and ``_HIGH``), each
+    :data:`SORT_SPACING` from the others and from ``taken``."""
+    taken = [np.asarray(spot) for spot in taken]
+    for _ in range(10_000):  # all at once, so that early spots cannot leave no room for later ones
+        spots = rng.uniform(SORT_TABLE_LOW, SORT_TABLE_HIGH, size=(count, 2))
+        together = [*taken, *spots]
+        gaps = [np.linalg.norm(a - b) for i, a in enumerate(together) for b in together[i + 1 :]]
+        if min(gaps, default=np.inf) >= SORT_SPACING:
+            return [(round(float(x), 4), round(float(y), 4)) for x, y in spots]
+    raise AssertionError("no room on the table for the boxes")  # the ranges leave room: not reached
+
+
+def _sort(seed: int | None, options: Mapping, observe: Observer | None) -> DemoRun:
+    rng = np.random.default_rng(seed)
+    names = [item.name for item in SORT_OBJECTS]
+    spots = dict(zip(names, _free_spots(rng, len(names)), strict=True))
+    order = sorted(names, key=lambda name: SORT_PLACES[name][1])  # the far places first
+    slipping = order[int(rng.integers(len(order)))]
+    # It is set down clear of the boxes still on the table then (those after it in the loop).
+    waiting = [spots[name] for name in order[order.index(slipping) + 1 :]]
+    slip = TakeFromHand(slipping, _free_spots(rng, 1, waiting)[0], after=float(rng.uniform(0.3, 0.9)))
+    items = [{"object": name, "target": list(SORT_PLACES[name])} for name in order]
+    py_trees.blackboard.Blackboard.clear()
+    root = load_tree(EXAMPLES / "sort.yaml")
+    world = tabletop_world(SORT_OBJECTS)
+    for name, (x, y) in spots.items():
+        world.place_on(name, TABLE.name, x, y)
+    set_task_values({"objects": items})
+    settings = {
+        "objects": spots,
+        "places": {name: list(SORT_PLACES[name]) for name in order},
+        "slip": {"object": slip.object, "after_s": round(slip.after, 3), "set_down_at": list(slip.where)},
+    }
+
+    def watch(runner: Runner, record: dict) -> None:
+        slip(runner.executor)
+        if observe is not None:
+            observe(runner, record)
+
+    runner = Runner(
+        root,
+        Executor(world),
+        max_sim_time=240.0,
+        run_info={"tree": str(EXAMPLES / "sort.yaml"), "demo": "sort", "seed": seed, "settings": settings},
+        observe=watch,
+    )
+
+    def judge(result: RunResult) -> dict:
+        errors = {
+            name: float(np.linalg.norm(world.object_pose(name).position[:2] - SORT_PLACES[name]))
+            for name in names
+        }
+        return {
+            "success": result.status == "SUCCESS" and max(errors.values()) <= PLACED and slip.done,
+            "status": result.status,
+            "placement_errors_m": {name: round(error, 4) for name, error in errors.items()},
+            "slipped": slip.object if slip.done else None,
+            **_timing(result),
+            "settings": settings,
+        }
+
+    return DemoRun(runner, settings, judge)
+
+
+# -- throw -------------------------------------------------------------------------------------------------
+
+
+def _throw(seed: int | None, options: Mapping, observe: Observer | None) -> DemoRun:
+    from besman.sim.throw_execution import ThrowingExecutor
+    from besman.sim.throwing import ThrowingTask
+
+    task = ThrowingTask(variant="paper")
+    target = options.get("target")
+    if target is None:
+        target = np.random.default_rng(seed).uniform(task.bounds.low, task.bounds.high).round(3)
+    target = np.asarray(target, dtype=float)
+    if target.shape != (2,):
+        raise InputError(f"--target needs two numbers, X,Y, got {target.tolist()}")
+    try:
+        task.bounds.check(target)  # outside the template's box: refused by name, before any work
+    except ValueError as error:
+        raise InputError(f"--target {target.tolist()}: {error}") from None
+    py_trees.blackboard.Blackboard.clear()
+    root = load_tree(EXAMPLES / "throw.yaml")
+    executor = ThrowingExecutor(task)
+    executor.wind_up()
+    set_task_values({"target": target})
+    settings = {"target": target.tolist()}
+    runner = Runner(
+        root,
+        executor,
+        max_sim_time=10.0,
+        run_info={"tree": str(EXAMPLES / "throw.yaml"), "demo": "throw", "seed": seed, "settings": settings},
+        observe=observe,
+    )
+
+    def judge(result: RunResult) -> dict:
+        flight = executor.throw
+        landing = None if flight is None or flight.landing is None else flight.landing
+        miss = None if landing is None else float(np.linalg.norm(landing - target))
+        return {
+            "success": result.status == "SUCCESS" and miss is not None and miss <= 0.5,
+            "status": result.status,
+            "target": target.tolist(),
+            "landing": None if landing is None else np.round(landing, 3).tolist(),
+            "miss_m": None if miss is None else round(miss, 3),
+            **_timing(result),
+        }
+
+    return DemoRun(runner, settings, judge)
+
+
+def _timing(result: RunResult) -> dict:
+    return {
+        "sim_time_s": result.sim_time_s,
+        "wall_time_s": result.wall_time_s,
+        "ticks": result.ticks,
+        "failed_node": result.failed_node,
+        "message": result.message,
+    }
+
+
+DEMOS: dict[str, Demo] = {
+    demo.name: demo
+    for demo in (
+        Demo(
+            "grasp-then-place",
+            "AILA takes the box from the table and puts it on the shelf",
+            "grasp_then_place.yaml",
+            _grasp_then_place,
+        ),
+        Demo(
+            "sort",
+            "three boxes, each to its own place on the shelf, in a loop over the objects; one slips and is "
+            "grasped again",
+            "sort.yaml",
+            _sort,
+        ),
+        Demo(
+            "throw",
+            "the PA-10 throws the ball at a target with the throwing skill template (--target X,Y)",
+            "throw.yaml",
+            _throw,
+        ),
+    )
+}
+
+
+def demo(name: str) -> Demo:
+    """The demo called ``name``; an :class:`~besman.skills.errors.InputError` lists the others."""
+    if name not in DEMOS:
+        raise InputError(f"no demo {name!r}; demos: {', '.join(DEMOS)}")
+    found = DEMOS[name]
+    if not found.path.is_file():
+        raise InputError(
+            f"demo {name}: its tree {found.path} is missing (demos run from the source checkout)"
+        )
+    return found
+
+
+def run_demo(
+    name: str,
+    seed: int | None = None,
+    options: Mapping | None = None,
+    *,
+    log: str | Path | None = None,
+    observe: Observer | None = None,
+) -> dict:
+    """Runs a demo and returns its judged summary (``success``, measurements, the configuration)."""
+    prepared = demo(name).prepare(seed, dict(options or {}), observe)
+    result = prepared.runner.run(log=log)
+    return {"demo": name, "seed": seed, **prepared.judge(result)}
