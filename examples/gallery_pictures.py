@@ -3,8 +3,8 @@
     python examples/gallery_pictures.py [--out docs/gallery]
 
 Each picture is MuJoCo's offscreen rendering of the demo's world at one tick of its run (sort: the last box
-being set down beside the others; throw: the ball in flight; grasp-then-place: the box carried to the
-shelf), from a camera aimed at what the demo is about.
+being set down beside the others; handover: both hands on the bar; throw: the ball in flight;
+grasp-then-place: the box carried to the shelf), from a camera aimed at what the demo is about.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from besman.trees.gallery import demo
 SHOTS = {
     "grasp-then-place": (0, 0.55, (0.55, -0.25, 0.9), 1.5, 200.0, -25.0),
     "sort": (0, 0.93, (0.55, -0.25, 0.9), 1.6, 205.0, -30.0),
+    "handover": (0, 0.42, (0.45, 0.0, 0.95), 1.3, 180.0, -25.0),
     "throw": (3, 0.5, (-2.5, -1.5, 0.8), 7.0, 135.0, -15.0),
 }
 

@@ -2,7 +2,7 @@
 
 A grasp is judged from the simulation as a robot with touch sensing would: both finger pads (the collision
 geoms of the finger bodies) in contact with the object, and the object's linear velocity within 2 cm/s of
-the hand site's, so that an object merely brushed or pushed does not count as held.
+the hand's at the object's centre, so that an object merely brushed or pushed does not count as held.
 """
 
 from __future__ import annotations
@@ -48,7 +48,11 @@ class Hand:
         if name is None or not all(self.touching(name)):
             return False
         model, data = self.world.model, self.world.data
-        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, self._body(name), self._velocity, 0)
-        body = self._velocity[3:].copy()
+        body = self._body(name)
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, self._velocity, 0)
+        moving = self._velocity[3:].copy()
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_SITE, self.site, self._velocity, 0)
-        return bool(np.linalg.norm(body - self._velocity[3:]) < HELD_SPEED)
+        # The hand's velocity where the object's centre is (a turning hand moves an object held off-centre).
+        offset = data.xipos[body] - data.site_xpos[self.site]
+        carried = self._velocity[3:] + np.cross(self._velocity[:3], offset)
+        return bool(np.linalg.norm(moving - carried) < HELD_SPEED)

@@ -109,9 +109,11 @@ def plan_leg(
     allowed: tuple[str, ...],
     settings: ReferenceSettings,
     yaws: np.ndarray = GRASP_YAWS,
+    shift=None,
 ) -> _Leg | None:
     """The best hand yaw among ``yaws`` for three top-down poses reached one after the other from the
-    configuration ``start``: each reachable (solved from the previous one), collision-free except with
+    configuration ``start`` (moved by ``shift(yaw)``, an (x, y) offset, where the poses depend on the
+    yaw): each reachable (solved from the previous one), collision-free except with
     ``allowed`` bodies, and the joint-space moves between them (``names``) staying within
     :data:`MAX_DEVIATION` of a straight line. Among the yaws that work, the one whose moves keep farthest
     from the joint limits (the first of ``yaws`` on a tie). Where no yaw reaches the poses, the yaws turned
@@ -126,17 +128,18 @@ def plan_leg(
     for turned in (yaws, yaws + np.pi):
         for index, yaw in enumerate(turned):
             orientation = top_down(yaw)
-            configurations = _pose_configurations(arm, start, positions, orientation, allowed)
+            poses = positions if shift is None else [p + np.r_[shift(yaw), 0.0] for p in positions]
+            configurations = _pose_configurations(arm, start, poses, orientation, allowed)
             if configurations is not None:
                 bound = min(arm.limit_margin(configurations[0]), arm.limit_margin(configurations[1]))
-                candidates.append((bound, index, orientation, configurations))
+                candidates.append((bound, index, orientation, configurations, poses))
         if candidates:
             break
     best, best_index = None, len(yaws)
-    for bound, index, orientation, configurations in sorted(candidates, key=lambda c: (-c[0], c[1])):
+    for bound, index, orientation, configurations, poses in sorted(candidates, key=lambda c: (-c[0], c[1])):
         if best is not None and (bound, -index) <= (best.clearance, -best_index):
             break  # neither this yaw nor any after it can beat the best
-        leg = _build_leg(arm, configurations, positions, orientation, names, duration, allowed, settings)
+        leg = _build_leg(arm, configurations, poses, orientation, names, duration, allowed, settings)
         if leg is not None and (best is None or (leg.clearance, -index) > (best.clearance, -best_index)):
             best, best_index = leg, index
     return best
@@ -284,12 +287,29 @@ def plan_place(
     plan: PickPlacePlan,
     settings: ReferenceSettings = DEFAULT_SETTINGS,
     transport: MovementPrimitive | None = None,
+    held=None,
 ) -> PlaceMotions:
     """Motions that carry ``item`` from the configuration ``start`` (holding it at carrying height) to
     ``place_xy`` on the shelf, set it down and retreat. The transport is a point-to-point move, or the
-    joint-space primitive ``transport`` (a learned carry) moved to its end points."""
+    joint-space primitive ``transport`` (a learned carry) moved to its end points.
+
+    ``held`` (x, y) is where the object's centre is from the hand's grasp point now, for an object held
+    off-centre (a bar taken at one end): the object, not the hand, goes to ``place_xy``, and since the
+    object turns with the hand, any top-down yaw will do (the offset turned with it)."""
     place_xy = np.asarray(place_xy, dtype=float)
     _, carry_z, place_z = heights(item, plan)
+    shift, yaws = None, grasp_yaws(item)
+    if held is not None:
+        held = np.asarray(held, dtype=float)
+        closing = arm.site_pose(start).rotation[:, 1]  # the fingers' closing axis (see top_down)
+        now = np.arctan2(closing[1], closing[0])
+
+        def shift(yaw: float) -> np.ndarray:
+            turn = yaw - now
+            rotation = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+            return -(rotation @ held)
+
+        yaws = GRASP_YAWS
     leg = plan_leg(
         arm,
         start,
@@ -298,7 +318,8 @@ def plan_place(
         plan.descend_time,
         allowed=(item.name,),
         settings=settings,
-        yaws=grasp_yaws(item),
+        yaws=yaws,
+        shift=shift,
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down placement at the target")
@@ -321,13 +342,14 @@ def plan_move(
     position=None,
     rise: float | None = None,
     home: bool = False,
+    yaw: float | None = None,
     allowed: tuple[str, ...] = (),
     duration: float = 1.0,
 ) -> MovementPrimitive:
     """A move of the hand from the configuration ``start``, exactly one of: to ``position`` (x, y, z) with
-    the hand's orientation kept (point to point in joint space), straight up by ``rise`` m, or back to the
-    robot's home configuration. The end must be collision-free (except with ``allowed`` bodies, e.g. an
-    object in the hand); a rise must stay straight."""
+    the hand's orientation kept, or pointing down turned by ``yaw`` (point to point in joint space), straight
+    up by ``rise`` m, or back to the robot's home configuration. The end must be collision-free (except with
+    ``allowed`` bodies, e.g. an object in the hand); a rise must stay straight."""
     if sum((position is not None, rise is not None, home)) != 1:
         raise InputError("a move goes to a position, rises, or goes home: exactly one of them")
     if home:
@@ -340,7 +362,8 @@ def plan_move(
             raise PlanningError(f"no straight rise of {rise:g} m from here")
         return primitive
     goal_position = finite_array("position", position)
-    result = arm.solve_ik(goal_position, hand.quaternion, initial=start, restarts=4)
+    orientation = hand.quaternion if yaw is None else top_down(yaw)
+    result = arm.solve_ik(goal_position, orientation, initial=start, restarts=4)
     if not result.success:
         raise PlanningError(f"the hand cannot reach {np.round(goal_position, 3).tolist()} as it is turned")
     hit = arm.collisions(result.qpos, allowed)

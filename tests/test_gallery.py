@@ -21,6 +21,7 @@ from besman.skills.pool import SkillTemplatePool
 from besman.trees.blackboard import set_task_values
 from besman.trees.conditions import ArmsApart, ObjectAt
 from besman.trees.gallery import DEMOS, SORT_PLACES, demo, run_demo
+from besman.trees.guards import KeepApart
 from besman.trees.leaves import ExecutePrimitive
 from besman.trees.loops import ForEach
 from besman.trees.manipulation import PlanMove
@@ -151,7 +152,7 @@ def test_demo_list_and_bad_demo_input(capsys):
     code, out, _ = run_cli(capsys, "demo", "--list")
     assert code == 0 and [line.split(":")[0] for line in out.splitlines()] == list(DEMOS)
     code, _, err = run_cli(capsys, "demo", "juggle")
-    assert code == 2 and "no demo 'juggle'; demos: grasp-then-place, sort, throw" in err
+    assert code == 2 and "no demo 'juggle'; demos: grasp-then-place, sort, handover, throw" in err
     code, _, err = run_cli(capsys, "demo", "sort", "--target", "1,2")
     assert code == 2 and "--target is for the throw demo" in err
     code, _, err = run_cli(capsys, "demo", "throw", "--target", "0,0")
@@ -165,6 +166,13 @@ def test_throw_demo_from_the_command_line(capsys):
     assert summary["target"] == [-3.2, -3.4]
 
 
+def test_handover_and_sort_demos_from_the_command_line(capsys):
+    code, out, _ = run_cli(capsys, "demo", "handover", "--seed", "3")
+    assert code == 0 and "SUCCESS: placement error" in out and "touched at 0 ticks" in out
+    code, out, _ = run_cli(capsys, "demo", "sort", "--seed", "3")
+    assert code == 0 and "SUCCESS: placement errors red" in out and "slipped and was grasped again" in out
+
+
 def test_sort_demo_is_the_same_run_for_the_same_seed():
     first, second = run_demo("sort", 5), run_demo("sort", 5)
     for summary in (first, second):
@@ -172,12 +180,13 @@ def test_sort_demo_is_the_same_run_for_the_same_seed():
     assert first == second and first["success"] and first["slipped"] is not None
 
 
-def test_a_demo_runs_watched_in_the_browser():
-    """--view: the run goes at --speed with the viewer serving the page; the summary is the same."""
+@pytest.mark.parametrize("name", ["sort", "handover", "throw"])  # grasp-then-place: tests/test_viewer.py
+def test_a_demo_runs_watched_in_the_browser(name):
+    """--view: the run goes at --speed with the viewer serving the page; the run succeeds as without."""
     from besman.commands.trees import _watched_demo
 
-    args = argparse.Namespace(view=True, host="127.0.0.1", port=0, speed=100.0, seed=2, log=None)
-    summary, viewers = _watched_demo(args, demo("throw"), {})
+    args = argparse.Namespace(view=True, host="127.0.0.1", port=0, speed=1000.0, seed=2, log=None)
+    summary, viewers = _watched_demo(args, demo(name), {})
     try:
         assert summary["success"]
         with urllib.request.urlopen(viewers[0].url, timeout=10) as page:
@@ -190,7 +199,8 @@ def test_a_demo_runs_watched_in_the_browser():
 @pytest.mark.parametrize("name", list(DEMOS))
 def test_every_demo_succeeds_in_ten_seeded_configurations(name):
     """The issue's acceptance: grasp-then-place and sort 10/10 (sort with a box taken out of the hand each
-    time), throw within 0.5 m of the target 10/10 (>= 9 asked)."""
+    time), handover 10/10 (>= 9 asked) without a contact between the arms, throw within 0.5 m of the target
+    10/10 (>= 9 asked)."""
     summaries = [run_demo(name, seed) for seed in range(10)]
     failed = [(s["seed"], s["status"], s.get("message")) for s in summaries if not s["success"]]
     assert failed == []
@@ -200,3 +210,60 @@ def test_every_demo_succeeds_in_ten_seeded_configurations(name):
             assert max(summary["placement_errors_m"].values()) <= 0.02
     if name == "throw":
         assert max(s["miss_m"] for s in summaries) <= 0.5
+    if name == "handover":  # never a contact between the arms, at any tick of any run
+        assert all(s["ticks_arms_touching"] == 0 and s["arms_closest_m"] >= 0.03 for s in summaries)
+
+
+def test_keep_apart_stops_its_subtree_when_the_arms_come_closer_than_its_margin():
+    """With a margin wider than the arms' distance the guard fails at once and its child never moves; with
+    a small one it is what its child is."""
+    py_trees.blackboard.Blackboard.clear()
+    world = tabletop_world()
+    right = Executor(world, ("right_arm",), "right_gripper")
+    right.add_arm("left", ("left_arm",), "left_gripper")
+    home = right.position.copy()
+
+    def guarded(margin):
+        moves = py_trees.composites.Sequence(
+            "moves",
+            memory=True,
+            children=[
+                PlanMove("plan", rise=0.05, namespace="m"),
+                ExecutePrimitive("rise", namespace="m", remap={"primitive": "/m/motion"}),
+            ],
+        )
+        return KeepApart("apart", moves, other="left", margin=margin)
+
+    wide = guarded(1.5)
+    result = Runner(wide, right).run()
+    assert result.status == "FAILURE" and "apart (less than 150 cm)" in result.message
+    assert np.array_equal(right.position, home)
+    narrow = guarded(0.05)
+    assert Runner(narrow, right).run().status == "SUCCESS"
+    with pytest.raises(ValueError, match="other must name another arm"):
+        KeepApart("self", py_trees.behaviours.Success("ok"), other="right").setup(executor=right)
+
+
+@pytest.mark.parametrize("name", ["sort", "handover", "throw"])
+def test_a_demos_log_replays_its_own_scene(tmp_path, name):
+    """The replay rebuilds the demo's world from the log's header and poses every arm, hand and free body
+    (the sort's boxes, the handover's left arm, the PA-10's ball) as the run left them."""
+    from besman.trees.watching import Replay
+
+    log = tmp_path / "run.jsonl"
+    assert run_demo(name, 4, log=log)["success"]
+    replay = Replay(log, {"port": 0})
+    try:
+        last = replay.records[-1]["robot"]
+        replay.show(len(replay.records) - 1)
+        qpos = replay.world.data.qpos
+        np.testing.assert_allclose(qpos[replay._arm], last["joints"], atol=1e-9)
+        for body, pose in last["objects"].items():
+            address = replay._objects[body]
+            np.testing.assert_allclose(qpos[address : address + 7], pose, atol=1e-9)
+        assert len(last["objects"]) == {"sort": 3, "handover": 1, "throw": 1}[name]
+        if name == "handover":
+            joints, _ = replay._arms["left"]
+            np.testing.assert_allclose(qpos[joints], last["arms"]["left"]["joints"], atol=1e-9)
+    finally:
+        replay.close()

@@ -13,10 +13,10 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import ClassVar
 
-import mujoco
 import numpy as np
 from py_trees.common import Access, Status
 
+from besman.sim.proximity import ArmProximity
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
 
@@ -119,61 +119,39 @@ class AtPose(SimulationBehaviour):
 
 
 class ArmsApart(SimulationBehaviour):
-    """Are the executor's ``arm`` and ``other`` arm (their links, hands and fingers) at least ``margin`` (m)
-    apart? A guard beside motions that run in parallel: it fails before two moving arms touch.
-
-    The distance is MuJoCo's between every pair of collision geoms of the two arms (``mj_geomDistance``,
-    searched only up to ``margin``), so it sees a near miss that no contact would show yet.
-    """
+    """Are the executor's ``arm`` and the ``other`` arm at least ``margin`` (m) apart
+    (:class:`~besman.sim.proximity.ArmProximity`: every pair of their collision geoms)?"""
 
     parameters: ClassVar = {"other": "str", "margin": "float>0", "arm": "str"}
 
     def __init__(self, name: str, *, other: str, margin: float = 0.02, arm: str | None = None) -> None:
         super().__init__(name, arm=arm)
         self.other, self.margin = other, margin
-        self._pairs: list[tuple[int, int]] = []
+        self.proximity: ArmProximity | None = None
 
     def setup(self, **kwargs) -> None:
         super().setup(**kwargs)
-        other = self.executor.arm_executor(self.other) if self.other != self.executor.name else None
-        if other is None:
-            raise InputError(f"{self.name}: other must name another arm than {self.executor.name!r}")
-        mine, theirs = _arm_geoms(self.executor), _arm_geoms(other)
-        self._pairs = [(a, b) for a in mine for b in theirs]
-        self._line = np.zeros(6)
+        self.proximity = proximity_of(self.name, self.executor, self.other)
 
     def update(self) -> Status:
-        world = self.executor.world
-        closest = self.margin
-        for a, b in self._pairs:
-            closest = min(
-                closest, mujoco.mj_geomDistance(world.model, world.data, a, b, self.margin, self._line)
-            )
-        if closest < self.margin:
-            self.feedback_message = (
-                f"the arms are {closest * 100:.1f} cm apart (less than {self.margin * 100:g} cm)"
-            )
-            return Status.FAILURE
-        self.feedback_message = f"the arms are at least {self.margin * 100:g} cm apart"
-        return Status.SUCCESS
+        return apart(self, self.proximity, self.margin)
 
 
-def _arm_geoms(executor) -> list[int]:
-    """The collision geoms of the bodies an executor's joints move (its links from the first joint of its
-    last group on, hand and fingers)."""
-    model, arm = executor.world.model, executor.arm
-    first = model.jnt_bodyid[model.joint(executor.world.robot.group(arm.groups[-1]).joints[0]).id]
-    bodies = [body for body in range(model.nbody) if _descends(model, body, first)]
-    return [
-        geom
-        for geom in range(model.ngeom)
-        if model.geom_bodyid[geom] in bodies and (model.geom_contype[geom] or model.geom_conaffinity[geom])
-    ]
+def proximity_of(name: str, executor, other: str) -> ArmProximity:
+    """The proximity of ``executor``'s arm to the ``other`` arm; an error names a missing or same arm."""
+    if other == executor.name:
+        raise InputError(f"{name}: other must name another arm than {executor.name!r}")
+    try:
+        return ArmProximity(executor, executor.arm_executor(other))
+    except KeyError as error:
+        raise InputError(f"{name}: {error.args[0]}") from None
 
 
-def _descends(model, body: int, ancestor: int) -> bool:
-    while body > 0:
-        if body == ancestor:
-            return True
-        body = model.body_parentid[body]
-    return False
+def apart(node, proximity: ArmProximity, margin: float) -> Status:
+    """SUCCESS if the arms are at least ``margin`` apart, else FAILURE; says which in ``node``'s feedback."""
+    distance = proximity.distance(margin)
+    if distance < margin:
+        node.feedback_message = f"the arms are {distance * 100:.1f} cm apart (less than {margin * 100:g} cm)"
+        return Status.FAILURE
+    node.feedback_message = f"the arms are at least {margin * 100:g} cm apart"
+    return Status.SUCCESS

@@ -12,6 +12,11 @@ same seed gives the same configuration and the same run. ``besman demo --list`` 
 - ``sort``: three boxes, each to its own place on the shelf, in a loop over the blackboard's list of objects
   (:class:`~besman.trees.loops.ForEach`); one box is taken out of the hand during its transport and set down
   elsewhere on the table, and the tree grasps it again.
+- ``handover``: AILA's left arm picks a bar from the table's left side at one end while the right arm gets
+  ready (in parallel), presents it in front of the torso, the right hand takes the other end (both grippers
+  closed), the left lets go and rises, and the right arm puts the bar on the shelf while the left goes home
+  (in parallel); ``KeepApart`` guards the parallel moves, and the run counts the ticks at which the arms
+  touch in the simulation (none is a success condition).
 - ``throw``: the PA-10 throws the ball at a target (``--target X,Y``, or drawn from the template's box) with
   the throwing skill template of the paper's experiment.
 
@@ -29,6 +34,7 @@ import py_trees
 
 from besman.sim.disturbances import TakeFromHand
 from besman.sim.executor import Executor
+from besman.sim.proximity import ArmProximity, moved_geoms
 from besman.sim.world import TABLE, GraspableObject, tabletop_world
 from besman.skills.errors import InputError
 from besman.trees.blackboard import set_task_values
@@ -165,6 +171,82 @@ def _sort(seed: int | None, options: Mapping, observe: Observer | None) -> DemoR
     return DemoRun(runner, settings, judge)
 
 
+# -- handover ----------------------------------------------------------------------------------------------
+
+# A bar, so that two hands can hold it at once from above, 12 cm apart: 26 x 4 x 4 cm, lying along y.
+BAR = GraspableObject("bar", size=(0.02, 0.13, 0.02), mass=0.2, rgba=(0.85, 0.65, 0.15, 1.0))
+HANDOVER_TABLE = ((0.45, 0.15), (0.50, 0.22))  # low and high x, y of the bar's centre (the left arm's reach)
+HANDOVER_PLACE = ((0.50, -0.45), (0.55, -0.38))  # low and high x, y on the shelf (the right arm's reach)
+
+
+class ArmContacts:
+    """An observer of two arms, every tick: the ticks at which they touch (a contact between their collision
+    geoms in the simulation) and the closest they came (MuJoCo's geom distance, searched up to 0.5 m)."""
+
+    def __init__(self, first: Executor, second: Executor) -> None:
+        self.world = first.world
+        self.first, self.second = np.array(moved_geoms(first)), np.array(moved_geoms(second))
+        self.proximity = ArmProximity(first, second)
+        self.touching = 0
+        self.closest = 0.5
+
+    def __call__(self, runner: Runner, record: dict) -> None:
+        data = self.world.data
+        geoms = data.contact.geom[: data.ncon]
+        one = np.isin(geoms[:, 0], self.first) & np.isin(geoms[:, 1], self.second)
+        other = np.isin(geoms[:, 1], self.first) & np.isin(geoms[:, 0], self.second)
+        self.touching += bool((one | other).any())
+        self.closest = min(self.closest, self.proximity.distance(self.closest))
+
+
+def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> DemoRun:
+    rng = np.random.default_rng(seed)
+    bar = rng.uniform(*HANDOVER_TABLE).round(4)
+    place = rng.uniform(*HANDOVER_PLACE).round(4)
+    py_trees.blackboard.Blackboard.clear()
+    root = load_tree(EXAMPLES / "handover.yaml")
+    world = tabletop_world((BAR,))
+    world.place_on("bar", TABLE.name, *bar)
+    # The right arm without the waist: a turning torso would carry the left hand, and the bar, with it.
+    right = Executor(world, ("right_arm",), "right_gripper")
+    left = right.add_arm("left", ("left_arm",), "left_gripper")
+    contacts = ArmContacts(right, left)
+    set_task_values({"place": place})
+    settings = {"bar": bar.tolist(), "place": place.tolist()}
+
+    def watch(runner: Runner, record: dict) -> None:
+        contacts(runner, record)
+        if observe is not None:
+            observe(runner, record)
+
+    runner = Runner(
+        root,
+        right,
+        max_sim_time=120.0,
+        run_info={
+            "tree": str(EXAMPLES / "handover.yaml"),
+            "demo": "handover",
+            "seed": seed,
+            "settings": settings,
+        },
+        observe=watch,
+    )
+
+    def judge(result: RunResult) -> dict:
+        error = float(np.linalg.norm(world.object_pose("bar").position[:2] - place))
+        return {
+            "success": result.status == "SUCCESS" and error <= PLACED and contacts.touching == 0,
+            "status": result.status,
+            "placement_error_m": round(error, 4),
+            "ticks_arms_touching": contacts.touching,
+            "arms_closest_m": round(contacts.closest, 4),
+            **_timing(result),
+            "settings": settings,
+        }
+
+    return DemoRun(runner, settings, judge)
+
+
 # -- throw -------------------------------------------------------------------------------------------------
 
 
@@ -193,7 +275,13 @@ def _throw(seed: int | None, options: Mapping, observe: Observer | None) -> Demo
         root,
         executor,
         max_sim_time=10.0,
-        run_info={"tree": str(EXAMPLES / "throw.yaml"), "demo": "throw", "seed": seed, "settings": settings},
+        run_info={
+            "tree": str(EXAMPLES / "throw.yaml"),
+            "demo": "throw",
+            "seed": seed,
+            "options": {"target": target.tolist()},
+            "settings": settings,
+        },
         observe=observe,
     )
 
@@ -238,6 +326,12 @@ DEMOS: dict[str, Demo] = {
             "grasped again",
             "sort.yaml",
             _sort,
+        ),
+        Demo(
+            "handover",
+            "AILA's left arm picks a bar and hands it to the right arm, which puts it on the shelf",
+            "handover.yaml",
+            _handover,
         ),
         Demo(
             "throw",

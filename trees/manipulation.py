@@ -247,13 +247,19 @@ class PlanPlace(_Plan):
         return np.r_[hand[:2], where]
 
     def goal(self, source: np.ndarray, item: str) -> np.ndarray:
-        # The object goes to the target where the hand holds it: a grasp off its centre (a bar taken over
-        # at one end) moves the hand by as much.
+        return source[:2]
+
+    def _planned(self, goal: np.ndarray, item, shape):
+        # The object, not the hand, goes to the target: where it is held off its centre (a bar taken over at
+        # one end), the planner moves the hand by as much (turned with the hand).
         executor = self.executor
-        if executor.hand is None or not executor.hand.holds(item):
-            return source[:2]  # nothing held: the transport's guard fails it, and says why
-        hand = executor.arm.site_pose(executor.arm.measured()).position
-        return source[:2] + hand[:2] - executor.world.object_pose(item).position[:2]
+        held = None
+        if executor.hand is not None and executor.hand.holds(item.name):  # else the guard fails, says why
+            hand = executor.arm.site_pose(executor.arm.measured()).position
+            held = executor.world.object_pose(item.name).position[:2] - hand[:2]
+        return plan_place(
+            executor.arm, executor.position, item, goal, self.plan, executor.reference_settings, shape, held
+        )
 
     def after(self, motions) -> tuple:
         return (motions.place, "release", motions.retreat)
@@ -298,7 +304,8 @@ class PlanReturn(SimulationBehaviour):
 
 
 class PlanMove(SimulationBehaviour):
-    """Writes ``motion``: the hand of ``arm`` to ``position`` (x, y, z) as it is turned, straight up by
+    """Writes ``motion``: the hand of ``arm`` to ``position`` (x, y, z) as it is turned (or pointing down,
+    turned by ``yaw``), straight up by
     ``rise`` m, or the arm to its ``home`` configuration (exactly one), planned from the commanded
     configuration; the end must not collide, except with the held ``object``."""
 
@@ -307,6 +314,7 @@ class PlanMove(SimulationBehaviour):
         "position": "floats[3]",
         "rise": "float>0",
         "home": "bool",
+        "yaw": "float",
         "object": "str",
         "duration": "float>0",
         "arm": "str",
@@ -319,6 +327,7 @@ class PlanMove(SimulationBehaviour):
         position: Sequence[float] | None = None,
         rise: float | None = None,
         home: bool = False,
+        yaw: float | None = None,
         object: str | None = None,
         duration: float = 1.0,
         namespace: str = "",
@@ -329,7 +338,9 @@ class PlanMove(SimulationBehaviour):
         if sum((position is not None, rise is not None, bool(home))) != 1:
             raise InputError(f"{name}: give exactly one of position, rise and home: true")
         self.position = None if position is None else np.asarray(position, dtype=float)
-        self.rise, self.home, self.duration = rise, bool(home), duration
+        if yaw is not None and position is None:
+            raise InputError(f"{name}: yaw turns the hand at a position; give the position too")
+        self.rise, self.home, self.yaw, self.duration = rise, bool(home), yaw, duration
         self.use_object(object)
         self.use("motion")
 
@@ -343,6 +354,7 @@ class PlanMove(SimulationBehaviour):
                 position=self.position,
                 rise=self.rise,
                 home=self.home,
+                yaw=self.yaw,
                 allowed=() if held is None else (held,),
                 duration=self.duration,
             )

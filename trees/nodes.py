@@ -22,6 +22,7 @@ import py_trees
 
 from besman.trees.base import RoleBehaviour
 from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
+from besman.trees.guards import KeepApart
 from besman.trees.idioms import grasp, grasp_then_place, place, return_home
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
 from besman.trees.loops import ForEach
@@ -156,6 +157,9 @@ NODE_TYPES: dict[str, NodeType] = {
         "one",
     ),
     "ForEach": NodeType(ForEach, _params(ForEach, {"items": "str", "namespace": "str"}), "one"),
+    "KeepApart": NodeType(
+        KeepApart, _params(KeepApart, {"other": "str", "margin": "float>0", "arm": "str"}), "one"
+    ),
     **{
         cls.__name__: leaf(cls)
         for cls in (

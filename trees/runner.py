@@ -8,8 +8,8 @@ the blackboard writes of that tick, and a summary of the robot and objects. The 
 - a header ``{"schema_version": 1, "kind": "besman-run-log", "run": {...}}`` (what was run, with which
   settings: enough to run it again; and ``nodes``, the tree's node paths in order),
 - one line per tick ``{"tick", "time", "statuses", "feedback", "blackboard", "robot"}`` (``robot``: the arm's
-  joints, the gripper command, the finger joints, and each object's position and orientation: what a replay
-  needs to pose the scene),
+  joints, the gripper command, the finger joints, each free body's position and orientation, and the joints
+  and fingers of any other arm driven in lockstep (``arms``): what a replay needs to pose the scene),
 - a result line ``{"result": {...}}`` (status SUCCESS, FAILURE, or INTERRUPTED for a run stopped by Ctrl-C).
 
 With a log file, the runner writes it as the run goes (:class:`LogStream`), and the file appears, whole,
@@ -33,6 +33,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
 import py_trees
 from py_trees.common import Status
@@ -77,9 +78,11 @@ def node_paths(root: py_trees.behaviour.Behaviour) -> dict[Any, str]:
 
 
 def object_addresses(world) -> dict[str, int]:
-    """Where each free object's pose (position, then w-x-y-z orientation) sits in ``qpos``."""
+    """Where each free body's pose (position, then w-x-y-z orientation) sits in ``qpos``, by body name: the
+    world's objects, and anything else that flies free (the PA-10's ball)."""
     model = world.model
-    return {name: int(model.jnt_qposadr[model.joint(name).id]) for name in world.objects}
+    free = np.flatnonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE)
+    return {model.body(model.jnt_bodyid[j]).name: int(model.jnt_qposadr[j]) for j in free}
 
 
 def jsonable(value: Any) -> Any:
@@ -134,6 +137,10 @@ class Runner:
         self._object_addresses = object_addresses(executor.world)
         hand = executor.hand
         self._fingers = None if hand is None else hand.gripper.qpos_indices
+        self._companions = [  # the other arms driven in lockstep: name, joints, fingers
+            (name, arm.arm.qpos_indices, None if arm.hand is None else arm.hand.gripper.qpos_indices)
+            for name, arm in executor.companions.items()
+        ]
 
     def run(self, log: str | Path | None = None) -> RunResult:
         """Runs to the end and returns the result (the records are in ``self.records``). With ``log``, the
@@ -236,6 +243,14 @@ class Runner:
                 for name, address in self._object_addresses.items()
             },
         }
+        if self._companions:
+            robot["arms"] = {
+                name: {
+                    "joints": qpos[joints].round(5).tolist(),
+                    "fingers": None if fingers is None else qpos[fingers].round(5).tolist(),
+                }
+                for name, joints, fingers in self._companions
+            }
         return {
             "tick": len(self.records),
             "time": round(self.executor.time, 6),

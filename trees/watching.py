@@ -115,8 +115,9 @@ class Watch:
 
 class Replay:
     """A logged run in the viewer: the scene and the tree panel of any tick, chosen on a timeline slider or
-    played at the run's own pace (the log is :func:`~besman.trees.runner.read_log`'s; the scene is AILA's
-    tabletop, posed from each tick's ``robot`` record)."""
+    played at the run's own pace (the log is :func:`~besman.trees.runner.read_log`'s; the scene is the
+    demo's that made the log, or AILA's tabletop, posed from each tick's ``robot`` record: every arm, hand
+    and free body)."""
 
     def __init__(self, log: str | Path, viewer_options: dict | None = None) -> None:
         header, self.records, self.result = read_log(log)
@@ -125,10 +126,14 @@ class Replay:
         self.nodes = header["run"].get("nodes") or list(
             dict.fromkeys(k for r in self.records for k in r["statuses"])
         )
-        self.world = tabletop_world()
-        executor = Executor(self.world)  # the arm and hand the run drove (the tabletop's defaults)
+        executor = _executor_of(header["run"])
+        self.world = executor.world
         self._arm = executor.arm.qpos_indices
-        self._fingers = executor.hand.gripper.qpos_indices
+        self._fingers = None if executor.hand is None else executor.hand.gripper.qpos_indices
+        self._arms = {  # the other arms of the run: joints and fingers
+            name: (arm.arm.qpos_indices, None if arm.hand is None else arm.hand.gripper.qpos_indices)
+            for name, arm in executor.companions.items()
+        }
         self._objects = object_addresses(self.world)
         self._tick = 0
         # Per tick, the blackboard as it stood (every key's last write); per node, the ticks that visited it.
@@ -155,8 +160,14 @@ class Replay:
         record = self.records[tick]
         robot, qpos = record["robot"], self.world.data.qpos
         qpos[self._arm] = robot["joints"]
-        if robot.get("fingers") is not None:
+        if robot.get("fingers") is not None and self._fingers is not None:
             qpos[self._fingers] = robot["fingers"]
+        for name, arm in robot.get("arms", {}).items():
+            if name in self._arms:
+                joints, fingers = self._arms[name]
+                qpos[joints] = arm["joints"]
+                if arm["fingers"] is not None and fingers is not None:
+                    qpos[fingers] = arm["fingers"]
         for name, pose in robot["objects"].items():
             if name in self._objects and len(pose) == 7:
                 qpos[self._objects[name] : self._objects[name] + 7] = pose
@@ -198,3 +209,13 @@ class Replay:
             pause = self.records[following]["time"] - self.records[tick]["time"]
             if not self._closed.wait(pause if 0 < pause < 1 else 0.02):
                 self.slider.value = following  # its update handler shows the tick
+
+
+def _executor_of(run: dict) -> Executor:
+    """The executor (its world, arms and hands) that a logged run drove: a gallery demo's, rebuilt from its
+    name, seed and options, or AILA's tabletop (the arm and hand of ``besman run``)."""
+    if run.get("demo") in (None, "grasp-then-place"):
+        return Executor(tabletop_world())
+    from besman.trees.gallery import demo
+
+    return demo(run["demo"]).prepare(run.get("seed"), run.get("options") or {}, None).runner.executor

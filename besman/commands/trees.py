@@ -208,12 +208,16 @@ def _demo_outcome(summary: dict) -> str:
     head = "SUCCESS" if summary["success"] else f"FAILURE ({summary['status']})"
     if "miss_m" in summary:
         landing = summary["landing"]
-        where = (
+        detail = (
             "no landing"
             if landing is None
             else f"landed at {landing}, {summary['miss_m']} m from {summary['target']}"
         )
-        detail = where
+    elif "ticks_arms_touching" in summary:
+        detail = (
+            f"placement error {summary['placement_error_m'] * 100:.1f} cm; the arms came within "
+            f"{summary['arms_closest_m'] * 100:.1f} cm and touched at {summary['ticks_arms_touching']} ticks"
+        )
     else:
         errors = ", ".join(
             f"{name} {error * 100:.1f} cm" for name, error in summary["placement_errors_m"].items()
