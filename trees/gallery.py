@@ -74,6 +74,41 @@ class Demo:
         return EXAMPLES / self.tree
 
 
+def observers(*calls: Observer | None) -> Observer | None:
+    """One runner observer that calls the given ones in turn (None if none is given)."""
+    calls = [call for call in calls if call is not None]
+    if len(calls) <= 1:
+        return calls[0] if calls else None
+
+    def observe(runner: Runner, record: dict) -> None:
+        for call in calls:
+            call(runner, record)
+
+    return observe
+
+
+def _runner(
+    demo: str,
+    root,
+    executor: Executor,
+    seed: int | None,
+    settings: dict,
+    max_sim_time: float,
+    observe,
+    **more,
+) -> Runner:
+    """A demo's runner, its log header naming the demo, seed and settings (and ``more``: its options), which
+    is what a replay needs to rebuild the demo's world."""
+    run_info = {
+        "tree": str(EXAMPLES / DEMOS[demo].tree),
+        "demo": demo,
+        "seed": seed,
+        **more,
+        "settings": settings,
+    }
+    return Runner(root, executor, max_sim_time=max_sim_time, run_info=run_info, observe=observe)
+
+
 # -- grasp-then-place --------------------------------------------------------------------------------------
 
 
@@ -141,17 +176,14 @@ def _sort(seed: int | None, options: Mapping, observe: Observer | None) -> DemoR
         "slip": {"object": slip.object, "after_s": round(slip.after, 3), "set_down_at": list(slip.where)},
     }
 
-    def watch(runner: Runner, record: dict) -> None:
-        slip(runner.executor)
-        if observe is not None:
-            observe(runner, record)
-
-    runner = Runner(
+    runner = _runner(
+        "sort",
         root,
         Executor(world),
-        max_sim_time=240.0,
-        run_info={"tree": str(EXAMPLES / "sort.yaml"), "demo": "sort", "seed": seed, "settings": settings},
-        observe=watch,
+        seed,
+        settings,
+        240.0,
+        observers(lambda runner, _: slip(runner.executor), observe),
     )
 
     def judge(result: RunResult) -> dict:
@@ -214,23 +246,7 @@ def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> D
     set_task_values({"place": place})
     settings = {"bar": bar.tolist(), "place": place.tolist()}
 
-    def watch(runner: Runner, record: dict) -> None:
-        contacts(runner, record)
-        if observe is not None:
-            observe(runner, record)
-
-    runner = Runner(
-        root,
-        right,
-        max_sim_time=120.0,
-        run_info={
-            "tree": str(EXAMPLES / "handover.yaml"),
-            "demo": "handover",
-            "seed": seed,
-            "settings": settings,
-        },
-        observe=watch,
-    )
+    runner = _runner("handover", root, right, seed, settings, 120.0, observers(contacts, observe))
 
     def judge(result: RunResult) -> dict:
         error = float(np.linalg.norm(world.object_pose("bar").position[:2] - place))
@@ -271,18 +287,8 @@ def _throw(seed: int | None, options: Mapping, observe: Observer | None) -> Demo
     executor.wind_up()
     set_task_values({"target": target})
     settings = {"target": target.tolist()}
-    runner = Runner(
-        root,
-        executor,
-        max_sim_time=10.0,
-        run_info={
-            "tree": str(EXAMPLES / "throw.yaml"),
-            "demo": "throw",
-            "seed": seed,
-            "options": {"target": target.tolist()},
-            "settings": settings,
-        },
-        observe=observe,
+    runner = _runner(
+        "throw", root, executor, seed, settings, 10.0, observe, options={"target": target.tolist()}
     )
 
     def judge(result: RunResult) -> dict:

@@ -179,29 +179,19 @@ def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple[dict
     if not args.view:
         return run_demo(chosen.name, args.seed, options, log=args.log), []
     from besman.sim.viewer import Viewer
+    from besman.trees.gallery import observers
     from besman.trees.watching import Watch
 
     prepared = chosen.prepare(args.seed, options, None)
     viewer = Viewer(prepared.runner.executor.world.model, host=args.host, port=args.port)
     print(f"viewer: {viewer.url} (the run goes at {args.speed:g}x real time)", file=sys.stderr, flush=True)
-    prepared.runner.observe = _both(prepared.runner.observe, Watch(viewer, args.speed))
+    prepared.runner.observe = observers(prepared.runner.observe, Watch(viewer, args.speed))
     try:
         result = prepared.runner.run(log=args.log)
     except BaseException:
         viewer.close()
         raise
     return {"demo": chosen.name, "seed": args.seed, **prepared.judge(result)}, [viewer]
-
-
-def _both(first, second):
-    if first is None:
-        return second
-
-    def observe(runner, record):
-        first(runner, record)
-        second(runner, record)
-
-    return observe
 
 
 def _demo_outcome(summary: dict) -> str:
