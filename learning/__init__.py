@@ -10,14 +10,18 @@ boundary F1), :mod:`besman.learning.segmentation_plot`,
 :mod:`besman.learning.labelling` (building blocks: clustering, few-shot 1-NN),
 :mod:`besman.learning.imitation` (a Cartesian-DMP primitive per building block),
 :mod:`besman.learning.policy_search` (CMA-ES and xNES refining theta on batched rollouts),
+:mod:`besman.learning.contextual_search` (C-REPS and contextual CMA-ES: one policy over all tasks),
+:mod:`besman.learning.template_selection` (a template's kernel by leave-one-out outcomes),
 :mod:`besman.learning.retargeting` (a person's movement onto AILA's arm), :mod:`besman.learning.pipeline`
 (``besman learn``: recordings to a template pool, figures by :mod:`besman.learning.pipeline_plots`),
 :mod:`besman.learning.online` (refining a template's instance in a copy of the world) and
-:mod:`besman.learning.throwing_experiment` (the paper's skill-template experiment, drawn by
-:mod:`besman.learning.throwing_plots`; :mod:`besman.learning.figures` writes PNGs).
+:mod:`besman.learning.throwing_experiment` (the paper's skill-template experiment and the field, judged by
+:mod:`besman.learning.throwing_claims`, drawn by :mod:`besman.learning.throwing_plots`;
+:mod:`besman.learning.figures` writes PNGs).
 """
 
 from besman.learning.changepoints import SegmentationPrior, SegmentModel
+from besman.learning.contextual_search import CREPS, ContextBox, ContextualCMAES, contextual_search
 from besman.learning.demonstration import Demonstration, DemonstrationError, Segment, load
 from besman.learning.imitation import imitate
 from besman.learning.labelling import (
@@ -34,7 +38,10 @@ from besman.learning.segmentation import Segmentation, segment
 
 __all__ = [
     "CMAES",
+    "CREPS",
     "XNES",
+    "ContextBox",
+    "ContextualCMAES",
     "Demonstration",
     "DemonstrationError",
     "DemonstrationSegment",
@@ -45,6 +52,7 @@ __all__ = [
     "SmoothingConfig",
     "WarmStart",
     "cluster",
+    "contextual_search",
     "ground_truth_segments",
     "grouping_accuracy",
     "hand_pose",

@@ -24,9 +24,11 @@ result to ``POOL/work/`` as soon as it is complete:
    that decide its success (:mod:`besman.sim.blocks`: reward for success, smoothness, joint-limit margin
    and no collisions). Each task's search is seeded by its own index, so an interrupted run that resumes
    gets the same results.
-6. **Templates**: one skill template per block over its tau (the K refined thetas), stored in the pool
-   with their provenance: recordings (file, SHA-256, frames), segment ids, workspace map, training tasks,
-   rewards and settings. Beside the pool: ``summary.png``, ``segmentations.png``, ``learning_curves.png``.
+6. **Templates**: one skill template per block over its tau (the K refined thetas; the shared-kernel model
+   with its default kernel, fixed before any learn, and the refinement's spread as the prior exploration of
+   the forcing weights, which are all that was searched), stored in the pool with their provenance:
+   recordings (file, SHA-256, frames), segment ids, workspace map, training tasks, rewards and settings.
+   Beside the pool: ``summary.png``, ``segmentations.png``, ``learning_curves.png``.
 
 ``work/learn.json`` records the settings and the recordings' checksums: a rerun with the same ones resumes,
 one with others is refused (``force`` starts over), and a pool learned for another robot is refused.
@@ -433,6 +435,7 @@ class _Run:
                 np.array([run["tau"] for run in runs]),
                 np.array([run["theta"] for run in runs]),
                 block_bounds(block),
+                prior_spread=np.where(_forcing_weights(prototype), self.settings.spread, 0.0),
                 seed=self.settings.seed,
                 task=TASK,
                 provenance={
@@ -494,11 +497,7 @@ def _refine_task(
 ) -> dict:
     """CMA-ES over the shape's forcing weights for one tau; the best theta, its outcome and the curve."""
     theta0 = task.shape.theta.copy()
-    n_weights = task.shape.dmp.n_weights
-    layout = theta0.reshape(task.shape.dmp.n_dims, n_weights + 2)
-    weights = np.zeros_like(layout, dtype=bool)
-    weights[:, :n_weights] = True
-    weights = weights.ravel()
+    weights = _forcing_weights(task.shape)
     outcomes: dict[bytes, BlockOutcome] = {}
 
     def objective(candidates: np.ndarray, owners: np.ndarray) -> np.ndarray:
@@ -524,6 +523,14 @@ def _refine_task(
         "outcome": dataclasses.asdict(outcomes[result.best_theta.tobytes()]),
         "start_outcome": dataclasses.asdict(outcomes[theta0[weights].tobytes()]),
     }
+
+
+def _forcing_weights(shape: MovementPrimitive) -> np.ndarray:
+    """A mask of theta's forcing weights (each DMP dimension's N weights, not its goal and goal velocity):
+    what refinement searches."""
+    mask = np.zeros((shape.dmp.n_dims, shape.dmp.n_weights + 2), dtype=bool)
+    mask[:, : shape.dmp.n_weights] = True
+    return mask.ravel()
 
 
 def _phase(segment: DemonstrationSegment) -> float:

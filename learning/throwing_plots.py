@@ -1,9 +1,13 @@
-"""The throwing experiment's figures (Fig. 5 of Metzen et al., KI 2014) from its ``results.json`` data.
+"""The throwing experiment's figures (Fig. 5 of Metzen et al., KI 2014, and the field) from ``results.json``.
 
 - ``fig5_top.png`` - distance to target vs the number of training tasks K: No Learning, the template's
-  prediction, and the template refined with uncertainty exploration; mean +- SEM, log scale.
-- ``fig5_bottom.png`` - learning curves at one K: distance of the best rollout so far vs rollouts for CMA-ES
-  tabula rasa and from the template with each exploration covariance; mean +- SEM bands, log scale.
+  prediction, the template refined with uncertainty exploration, the per-dimension template of the first
+  reproduction, and the variants beyond the paper (dashed, labelled "variant"); mean +- SEM, log scale.
+- ``fig5_bottom.png`` - learning curves at K = curve_k: distance of the best rollout so far vs rollouts for
+  CMA-ES tabula rasa and from the template with each exploration, and from the nearest training theta.
+- ``fig_field.png`` - every method's distance on the grid against the total rollouts it spent (training
+  and kernel choice included), log-log: the paper's methods, zero-shot baselines, refinement baselines,
+  contextual policy search and the variants.
 """
 
 from __future__ import annotations
@@ -18,37 +22,78 @@ LABELS = {
     "tabula_rasa": "CMA-ES tabula rasa",
     "weight_proportional": "template, weight-proportional exploration",
     "uncertainty": "template, uncertainty exploration",
-    "correlated": "template, correlated uncertainty (ours)",
+    "isotropic": "template mean, isotropic exploration (same trace)",
+    "nearest_start": "CMA-ES from the nearest training theta",
+    "zero_shot_template": "template prediction Theta(tau)",
+    "zero_shot_per_dimension": "per-dimension GPs (first reproduction)",
+    "zero_shot_training_mean": "mean of the training thetas",
+    "zero_shot_nearest_neighbour": "nearest neighbour",
+    "zero_shot_affine": "affine regression",
+    "zero_shot_crkr": "CrKR",
+    "template_refined": "template + uncertainty, refined",
+    "creps": "C-REPS (contextual)",
+    "contextual_cmaes": "contextual CMA-ES",
+    "variant_bootstrapped": "variant: bootstrapped training",
+    "variant_goal_only": "variant: goal-only template",
+    "no_learning": "No Learning",
 }
 
 
-def plot_results(results: dict, directory: Path) -> tuple[Path, Path]:
-    """Writes both figures into ``directory``; returns their paths."""
-    return _top(results, Path(directory) / "fig5_top.png"), _bottom(
-        results, Path(directory) / "fig5_bottom.png"
+def plot_results(results: dict, directory: Path) -> tuple[Path, Path, Path]:
+    """Writes the three figures into ``directory``; returns their paths."""
+    directory = Path(directory)
+    return (
+        _top(results, directory / "fig5_top.png"),
+        _bottom(results, directory / "fig5_bottom.png"),
+        _field(results, directory / "fig_field.png"),
     )
 
 
+def _errorbar(axes, xs, summaries, **style):
+    means = np.array([s["mean"] for s in summaries])
+    sems = np.array([s["sem"] for s in summaries])
+    axes.errorbar(xs, means, yerr=sems, capsize=3, **style)
+
+
 def _top(results: dict, path: Path) -> Path:
-    ks = [int(k) for k in results["zero_shot"]]
-    figure, axes = plt.subplots(figsize=(6.4, 4.2))
+    by_k = results["zero_shot"]["template"]
+    ks = [int(k) for k in by_k]
+    figure, axes = plt.subplots(figsize=(7.2, 4.6))
     none = results["no_learning"]
     axes.axhline(none["mean"], color="grey", linestyle="--", label="No Learning")
     axes.axhspan(none["mean"] - none["sem"], none["mean"] + none["sem"], color="grey", alpha=0.15)
     refine = results["config"]["refine_rollouts"]
-    for key, label, marker in (
-        ("zero_shot", "prediction Theta(tau)", "o"),
-        ("st_uncertainty_25", f"template + uncertainty, {refine} rollouts", "s"),
-    ):
-        means = np.array([results[key][str(k)]["mean"] for k in ks])
-        sems = np.array([results[key][str(k)]["sem"] for k in ks])
-        axes.errorbar(ks, means, yerr=sems, marker=marker, capsize=3, label=label)
-    title = f"PA-10 throwing: {len(ks)} training-set sizes, {results['config']['seeds']} seed(s)"
+    _errorbar(axes, ks, by_k.values(), marker="o", label="prediction Theta(tau)")
+    _errorbar(
+        axes,
+        ks,
+        results["template_refined"].values(),
+        marker="s",
+        label=f"template + uncertainty, {refine} rollouts",
+    )
+    _errorbar(
+        axes,
+        ks,
+        results["zero_shot"]["per_dimension"].values(),
+        marker="^",
+        color="tab:grey",
+        label="prediction, per-dimension GPs (first reproduction)",
+    )
+    for variant, values in results["variants"].items():
+        _errorbar(
+            axes,
+            [int(k) for k in values],
+            values.values(),
+            marker="x",
+            linestyle="--",
+            label=LABELS[f"variant_{variant}"],
+        )
+    title = f"PA-10 throwing: distance vs training tasks, {results['config']['seeds']} seed(s)"
     return _finish(figure, axes, ("training tasks K", "distance to target (m)", title), path)
 
 
 def _bottom(results: dict, path: Path) -> Path:
-    figure, axes = plt.subplots(figsize=(6.4, 4.2))
+    figure, axes = plt.subplots(figsize=(7.2, 4.6))
     for method, rows in results["curves"].items():
         rows = np.array(rows)
         line = axes.plot(rows[:, 0], rows[:, 1], label=LABELS.get(method, method))[0]
@@ -56,19 +101,49 @@ def _bottom(results: dict, path: Path) -> Path:
             rows[:, 0], rows[:, 1] - rows[:, 2], rows[:, 1] + rows[:, 2], color=line.get_color(), alpha=0.15
         )
     k = results["config"]["curve_k"]
-    prediction = results["zero_shot"][str(k)]["mean"]
+    prediction = results["zero_shot"]["template"][str(k)]["mean"]
     axes.axhline(prediction, color="black", linestyle=":", label=f"prediction at K={k}")
     labels = ("rollouts", "distance of the best rollout so far (m)", f"Learning curves at K = {k}")
     return _finish(figure, axes, labels, path)
 
 
-def _finish(figure, axes, labels: tuple[str, str, str], path: Path) -> Path:
+def _field(results: dict, path: Path) -> Path:
+    figure, axes = plt.subplots(figsize=(8.4, 5.4))
+    for name, rows in results["field"].items():
+        rows = np.array(rows, dtype=float)
+        xs = np.maximum(rows[:, 0], 1.0)  # No Learning spends nothing: drawn at 1 on the log axis
+        style = {"marker": "o", "markersize": 3}
+        if name.startswith("curve_"):
+            style = {}
+        elif name.startswith("variant_"):
+            style = {"marker": "x", "linestyle": "--"}
+        elif name in ("creps", "contextual_cmaes"):
+            style = {"marker": "D", "markersize": 3, "linestyle": "-."}
+        elif name == "no_learning":
+            style = {"marker": "*", "markersize": 10, "linestyle": "none", "color": "black"}
+        label = LABELS.get(name.removeprefix("curve_"), name)
+        axes.plot(xs, rows[:, 1], label=label, **style)
+    axes.axhline(0.5, color="black", linewidth=0.8, linestyle=":", label="0.5 m")
+    axes.set_xscale("log")
+    labels = (
+        "total rollouts (training, kernel choice and the new task's)",
+        "mean distance on the grid (m)",
+        "The field on the paper's protocol",
+    )
+    _finish(figure, axes, labels, path, legend_outside=True)
+    return path
+
+
+def _finish(figure, axes, labels: tuple[str, str, str], path: Path, legend_outside: bool = False) -> Path:
     """Log-scale distances, axis labels and title, legend and grid; written to ``path``."""
     axes.set_yscale("log")
     axes.set_xlabel(labels[0])
     axes.set_ylabel(labels[1])
     axes.set_title(labels[2])
-    axes.legend(fontsize=8)
+    if legend_outside:
+        axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    else:
+        axes.legend(fontsize=7)
     axes.grid(True, which="both", alpha=0.3)
     figure.tight_layout()
     return save_png(figure, path, dpi=120)

@@ -6,10 +6,12 @@
   the forcing term and the transformation system, derived and cited.
 - :mod:`besman.skills.primitive` - a DMP with its metadata, saved as JSON + NPZ (:mod:`besman.skills.storage`:
   atomic writes, JSON fields and schema versions checked, never pickle).
-- :mod:`besman.skills.template` - skill templates Psi = (Theta, Omega): a Gaussian process per theta
-  dimension over the task parameters (:mod:`besman.skills.tasks`: task boxes), and exploration covariances;
-  :mod:`besman.skills.pool` - the template pool, a directory of JSON + NPZ entries, a mapping of names to
-  templates.
+- :mod:`besman.skills.template` - skill templates Psi = (Theta, Omega) over the task parameters
+  (:mod:`besman.skills.tasks`: task boxes): :mod:`besman.skills.template_models` - Theta as one combination
+  of whole training thetas per task (or a Gaussian process per theta dimension) and a per-coordinate
+  uncertainty between a prior exploration and the data; :mod:`besman.skills.zero_shot` - the zero-shot
+  predictors a template is compared with; :mod:`besman.skills.pool` - the template pool, a directory of
+  JSON + NPZ entries, a mapping of names to templates.
 - :mod:`besman.skills.quaternion` - unit quaternions (w, x, y, z); :mod:`besman.skills.validation` - argument
   checks; :mod:`besman.skills.errors` - :class:`BesmanError`, the base of every error besman raises for bad
   input.

@@ -4,12 +4,15 @@ A :class:`SkillTemplatePool` is a directory (the embedded default of a pool: not
 two files per template:
 
 - ``NAME.json`` - the manifest: schema version, kind, name, task, the task parameters' names and box, the
-  theta layout (the prototype primitive's document: DMP configuration and metadata), the Omega kind, the
-  kernel and the names of its hyperparameters, the training set's size, provenance, and the SHA-256 of
-- ``NAME.npz`` - the arrays: training taus and thetas, fitted hyperparameters, the prototype's arrays.
+  theta layout (the prototype primitive's document: DMP configuration and metadata), the model of Theta
+  and its kernel (the shared model's hyperparameters, or the names of the per-dimension GPs'), the Omega
+  kind, the training set's size, provenance, and the SHA-256 of
+- ``NAME.npz`` - the arrays: training taus and thetas, the prototype's arrays, and the shared model's prior
+  spread or the per-dimension GPs' fitted hyperparameters.
 
-Nothing is pickled: a template is rebuilt from its training data and stored hyperparameters (the GPs are
-refitted with the optimiser off, which reproduces their predictions exactly). Writes go through temporary
+Nothing is pickled: a template is rebuilt from its training data and stored hyperparameters (the models
+are refitted with their hyperparameters given, which reproduces their predictions exactly). Schema
+version 2 added the model; version 1 entries (all per-dimension) are still read. Writes go through temporary
 files and renames (arrays first, manifest last) under an exclusive lock on ``DIR/.lock``; reads hold a
 shared lock, so two writers, or a writer and a reader, never see half an entry. An entry that is truncated,
 tampered with (its arrays no longer match the manifest's checksum), of another schema version or not a
@@ -26,6 +29,7 @@ import json
 import re
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -42,9 +46,11 @@ from besman.skills.storage import (
     write_atomically,
 )
 from besman.skills.tasks import TaskBounds
-from besman.skills.template import EXPLORATIONS, SkillTemplate, default_kernel
+from besman.skills.template import EXPLORATIONS, SkillTemplate
+from besman.skills.template_models import SharedKernel, per_dimension_kernel
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+READABLE_VERSIONS = (1, 2)  # version 1: per-dimension templates, before the model was stored
 KIND = "besman-skill-template"
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
 PROTOTYPE = "prototype."  # prefix of the prototype's arrays in the NPZ
@@ -112,9 +118,20 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
         arrays = {
             "taus": template.taus,
             "thetas": template.thetas,
-            "hyperparameters": template.hyperparameters,
             **{PROTOTYPE + key: value for key, value in prototype_arrays.items()},
         }
+        if template.kernel is None:
+            arrays["hyperparameters"] = template.hyperparameters
+            kernel = {
+                "model": "per_dimension",
+                "form": "C * RBF(anisotropic) + White, per theta dimension",
+                "hyperparameters": [
+                    param.name for param in per_dimension_kernel(len(template.box.names)).hyperparameters
+                ],
+            }
+        else:
+            arrays["prior_spread"] = template.prior_spread
+            kernel = {"model": "shared", **asdict(template.kernel)}
         data = npz_bytes(arrays)
         manifest = self._manifest(template.name)
         document = {
@@ -125,12 +142,7 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
             "tau": template.box.as_dict(),
             "theta": {"size": int(template.thetas.shape[1]), "prototype": prototype},
             "exploration": template.exploration,
-            "kernel": {
-                "form": "C * RBF(anisotropic) + White, per theta dimension",
-                "hyperparameters": [
-                    param.name for param in default_kernel(len(template.box.names)).hyperparameters
-                ],
-            },
+            "kernel": kernel,
             "training": {"tasks": len(template.taus), "seed": template.seed},
             "provenance": template.provenance,
             "arrays": {"file": manifest.with_suffix(".npz").name, "sha256": sha256(data)},
@@ -177,7 +189,7 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
             if document is None or document.get("kind") != KIND:
                 found = None if document is None else document.get("kind")
                 raise PoolError(f"{where}: not a skill template (kind {found!r}, expected {KIND!r})")
-            check_schema_version(document, SCHEMA_VERSION, where)
+            check_schema_version(document, READABLE_VERSIONS, where, PoolError)
             if require_field(document, "name", str, where) != name:
                 raise PoolError(f"{where}: the manifest names {document['name']!r}, its file {name!r}")
             reference = require_field(document, "arrays", dict, where)
@@ -201,7 +213,7 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
             exploration = require_field(document, "exploration", str, where)
             if exploration not in EXPLORATIONS:
                 raise PoolError(f"{where}: exploration must be one of {EXPLORATIONS}, got {exploration!r}")
-            for key in ("taus", "thetas", "hyperparameters"):
+            for key in ("taus", "thetas"):
                 if key not in arrays:
                     raise PoolError(f"{where}: the arrays lack {key!r}")
             training = require_field(document, "training", dict, where)
@@ -212,7 +224,7 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
                 arrays["thetas"],
                 box,
                 exploration=exploration,
-                hyperparameters=arrays["hyperparameters"],
+                **_model(document, arrays, where),
                 seed=require_field(training, "seed", int, f"{where}: training"),
                 task=require_field(document, "task", str, where),
                 provenance=require_field(document, "provenance", dict, where),
@@ -222,6 +234,25 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
         except ValueError as error:  # the project's InputError and numpy's own, from any field or array
             message = str(error)
             raise PoolError(message if message.startswith(where) else f"{where}: {message}") from None
+
+
+def _model(document: dict, arrays: dict[str, np.ndarray], where: str) -> dict:
+    """The template's model arguments from a manifest's kernel (version 1: always per-dimension)."""
+    kernel = require_field(document, "kernel", dict, where)
+    model = "per_dimension" if document["schema_version"] == 1 else require_field(kernel, "model", str, where)
+    needs = {"per_dimension": "hyperparameters", "shared": "prior_spread"}
+    if model not in needs:
+        raise PoolError(f"{where}: kernel.model must be one of {sorted(needs)}, got {model!r}")
+    if needs[model] not in arrays:
+        raise PoolError(f"{where}: the arrays lack {needs[model]!r}")
+    if model == "per_dimension":
+        return {"model": model, "hyperparameters": arrays["hyperparameters"]}
+    fields = {
+        field: require_field(kernel, field, (int, float), f"{where}: kernel")
+        for field in ("length_scale", "noise", "prior_weight")
+    }
+    fields["weights"] = require_field(kernel, "weights", str, f"{where}: kernel")
+    return {"model": model, "kernel": SharedKernel(**fields), "prior_spread": arrays["prior_spread"]}
 
 
 def summary(template: SkillTemplate) -> dict:
@@ -234,6 +265,11 @@ def summary(template: SkillTemplate) -> dict:
         "prototype": template.prototype.name,
         "exploration": template.exploration,
         "training_tasks": len(template.taus),
-        "hyperparameters": np.round(template.hyperparameters, 4).tolist(),
+        "model": template.model.name,
+        **(
+            {"hyperparameters": np.round(template.hyperparameters, 4).tolist()}
+            if template.kernel is None
+            else {"kernel": asdict(template.kernel)}
+        ),
         "provenance": template.provenance,
     }

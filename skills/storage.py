@@ -94,12 +94,18 @@ def read_json(path: Path, error: type[BesmanError] = InputError, top: type[dict]
 
 
 def check_schema_version(
-    document: dict[str, Any], expected: int, where: str, error: type[BesmanError] = InputError
+    document: dict[str, Any],
+    expected: int | tuple[int, ...],
+    where: str,
+    error: type[BesmanError] = InputError,
 ) -> None:
-    """Refuses a document whose ``schema_version`` is not ``expected`` (the message names ``where``)."""
+    """Refuses a document whose ``schema_version`` is not ``expected`` (or one of them; the message names
+    ``where``)."""
     version = document.get("schema_version")
-    if version != expected or isinstance(version, bool):
-        raise error(f"{where}: schema_version {version!r} is not supported (expected {expected})")
+    versions = expected if isinstance(expected, tuple) else (expected,)
+    if version not in versions or isinstance(version, bool):
+        wanted = versions[0] if len(versions) == 1 else f"one of {versions}"
+        raise error(f"{where}: schema_version {version!r} is not supported (expected {wanted})")
 
 
 def require_field(

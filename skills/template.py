@@ -6,65 +6,48 @@ an exploration covariance for refining it further (CMA-ES started at N(Theta(tau
 Gaussian-process regression (da Silva, Konidaris and Barto, ICML 2012 learn such "parameterised skills"
 by regression).
 
-One GP per theta dimension
---------------------------
-A single GP with one kernel over all outputs (scikit-learn's multi-output ``GaussianProcessRegressor``)
-gives every output the same predictive variance up to a constant factor: the variance depends only on the
-kernel and the training inputs, never on the outputs. Every dimension would then be equally uncertain in
-shape (the "shared-kernel trap"), although some parameters vary smoothly with tau, some erratically and
-some not at all. Here each dimension j has its own GP - amplitude, length scales per tau coordinate and
-noise level, fitted by maximum marginal likelihood - so var_j(tau) has its own shape: a parameter that
-is the same in every training task has almost no variance anywhere, one that the training tasks disagree
-about keeps a noise floor, and all of them grow towards their prior variance away from the training tasks
-(extrapolation is allowed; its growing uncertainty is the point).
+Models of Theta and the per-coordinate variance (``model=``, :mod:`besman.skills.template_models`)
+----------------------------------------------------------------------------------------------------
+- ``"shared"`` (the default): one set of weights per query for whole training thetas (a GP with one
+  correlation for every output and a constant mean), and a per-coordinate variance between the prior
+  exploration (``prior_spread``, the spread a search without a template would use: far from the data and at
+  K = 1 the template explores like that) and what the training thetas disagree about.
+- ``"per_dimension"``: one GP per coordinate with its own hyperparameters by marginal likelihood, the model
+  of the first reproduction, kept for comparisons.
 
-tau is normalised to the task box ([0, 1] per coordinate) before the GPs see it; outputs are standardised
-(``normalize_y``). Kernel: C * RBF(anisotropic) + White, with bounds that keep the length scales between
-1/20 and 20 box widths.
+tau is normalised to the task box ([0, 1] per coordinate) before a model sees it.
 
 Exploration covariances (``exploration=``)
 ------------------------------------------
-- ``"uncertainty"``: Sigma_jj = var_j(tau), the GP's predictive variance (noise included: the theta_i are
-  themselves noisy outcomes of a stochastic search).
+- ``"uncertainty"``: Sigma_jj = var_j(tau), the model's per-coordinate variance.
 - ``"weight_proportional"``: Sigma_jj proportional to the typical |theta_j| of the training set (the mean
   of |theta_ij| over i), squared; scaled to the same total variance (trace) as the uncertainty kind at tau,
   so that the two differ in shape only.
+- ``"isotropic"``: the same trace spread evenly over the coordinates (a baseline: the template's mean with
+  an exploration that knows nothing of the coordinates).
 - ``"correlated"`` (beyond the paper): the uncertainty kind's variances with the correlations of the
-  training thetas (Ledoit-Wolf shrunk): Sigma = D R D. Parameters that moved together between the training
-  tasks are explored together, along the directions that change the task outcome.
+  training thetas (Ledoit-Wolf shrunk): Sigma = D R D.
 
-A template is rebuilt from its training data and its fitted hyperparameters (no pickles; see
+A template is rebuilt from its training data and its hyperparameters (no pickles; see
 :mod:`besman.skills.pool`).
 """
 
 from __future__ import annotations
 
 import copy
-import warnings
 from typing import Any
 
 import numpy as np
 from sklearn.covariance import LedoitWolf
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.gaussian_process import GaussianProcessRegressor
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, WhiteKernel
 
 from besman.skills.errors import InputError
 from besman.skills.primitive import MovementPrimitive
 from besman.skills.tasks import TaskBounds
+from besman.skills.template_models import PerDimensionModel, SharedKernel, SharedKernelModel
 from besman.skills.validation import finite_array
 
-EXPLORATIONS = ("uncertainty", "weight_proportional", "correlated")
-LENGTH_SCALE_BOUNDS = (0.05, 20.0)  # in box widths
-AMPLITUDE_BOUNDS = (1e-4, 1e2)  # of the standardised outputs
-NOISE_BOUNDS = (1e-8, 1.0)
-
-
-def default_kernel(tau_dims: int) -> Kernel:
-    """C * RBF (one length scale per tau coordinate) + White, on normalised tau and standardised theta."""
-    return ConstantKernel(1.0, AMPLITUDE_BOUNDS) * RBF(
-        np.full(tau_dims, 0.5), LENGTH_SCALE_BOUNDS
-    ) + WhiteKernel(1e-2, NOISE_BOUNDS)
+MODELS = ("shared", "per_dimension")
+EXPLORATIONS = ("uncertainty", "weight_proportional", "isotropic", "correlated")
 
 
 class SkillTemplate:
@@ -76,10 +59,14 @@ class SkillTemplate:
             execution time, start; and its metadata); instances are copies with theta = Theta(tau).
         taus: (K, m) training tasks; thetas: (K, n) the thetas learned for them.
         box: the names and box of the task parameters.
+        model: ``"shared"`` or ``"per_dimension"`` (see the module documentation).
+        kernel: the shared model's hyperparameters (default :class:`SharedKernel`).
+        prior_spread: the shared model's prior exploration, a standard deviation per theta coordinate (n,)
+            or one for all (>= 0; 0 for coordinates nobody explores); required for ``model="shared"``.
         exploration: the Omega kind (see the module documentation).
-        hyperparameters: (n, p) fitted kernel parameters (log scale, scikit-learn's ``kernel.theta``) to
-            rebuild a stored template without refitting; None fits them (maximum marginal likelihood).
-        seed: seed of the optimiser restarts when fitting.
+        hyperparameters: the per-dimension model's (n, p) fitted kernel parameters (log scale) to rebuild a
+            stored template without refitting; None fits them (maximum marginal likelihood).
+        seed: seed of the per-dimension model's optimiser restarts.
         task: what the template is for (e.g. "throwing/paper"); provenance: JSON-compatible facts.
     """
 
@@ -91,12 +78,17 @@ class SkillTemplate:
         thetas,
         box: TaskBounds,
         *,
+        model: str = "shared",
+        kernel: SharedKernel | None = None,
+        prior_spread=None,
         exploration: str = "uncertainty",
         hyperparameters=None,
         seed: int = 0,
         task: str = "",
         provenance: dict[str, Any] | None = None,
     ) -> None:
+        if model not in MODELS:
+            raise InputError(f"model must be one of {MODELS}, got {model!r}")
         if exploration not in EXPLORATIONS:
             raise InputError(f"exploration must be one of {EXPLORATIONS}, got {exploration!r}")
         taus, thetas = finite_array("taus", taus, ndim=2), finite_array("thetas", thetas, ndim=2)
@@ -115,39 +107,42 @@ class SkillTemplate:
         self.taus, self.thetas, self.seed, self.task = taus, thetas, seed, task
         self.provenance = dict(provenance or {})
         inputs = box.normalise(taus)
-        if hyperparameters is None:
-            self._gps = [self._fit(inputs, thetas[:, j], seed + j) for j in range(thetas.shape[1])]
-        else:
-            hyperparameters = finite_array("hyperparameters", hyperparameters, ndim=2)
-            kernel = default_kernel(taus.shape[1])
-            if hyperparameters.shape != (thetas.shape[1], kernel.theta.size):
+        if model == "shared":
+            if hyperparameters is not None:
                 raise InputError(
-                    f"hyperparameters must have shape {(thetas.shape[1], kernel.theta.size)}, "
-                    f"got {hyperparameters.shape}"
+                    "hyperparameters= is the per-dimension model's; the shared one takes kernel="
                 )
-            self._gps = [
-                GaussianProcessRegressor(kernel.clone_with_theta(row), optimizer=None, normalize_y=True).fit(
-                    inputs, thetas[:, j]
+            if prior_spread is None:
+                raise InputError("the shared model needs prior_spread (the exploration without a template)")
+            spread = finite_array("prior_spread", prior_spread)
+            spread = np.full(thetas.shape[1], float(spread)) if spread.ndim == 0 else spread
+            if spread.shape != (thetas.shape[1],) or np.any(spread < 0):
+                raise InputError(
+                    f"prior_spread must be one standard deviation >= 0 or {thetas.shape[1]} of them, "
+                    f"got shape {spread.shape}"
                 )
-                for j, row in enumerate(hyperparameters)
-            ]
+            self.prior_spread = spread
+            self.model = SharedKernelModel(inputs, thetas, kernel or SharedKernel(), spread**2)
+        else:
+            if kernel is not None or prior_spread is not None:
+                raise InputError("kernel= and prior_spread= are the shared model's")
+            self.prior_spread = None
+            self.model = PerDimensionModel(inputs, thetas, hyperparameters, seed)
         typical = np.abs(thetas).mean(axis=0)
         self._typical = np.where(typical > 0, typical, 1e-12)
         self._correlation = _shrunk_correlation(thetas)
 
-    @staticmethod
-    def _fit(inputs: np.ndarray, values: np.ndarray, seed: int) -> GaussianProcessRegressor:
-        gp = GaussianProcessRegressor(
-            default_kernel(inputs.shape[1]), normalize_y=True, n_restarts_optimizer=2, random_state=seed
-        )
-        with warnings.catch_warnings():  # hyperparameters at a bound are expected (e.g. a constant theta_j)
-            warnings.simplefilter("ignore", ConvergenceWarning)
-            return gp.fit(inputs, values)
+    @property
+    def kernel(self) -> SharedKernel | None:
+        """The shared model's hyperparameters (None for the per-dimension model)."""
+        return self.model.kernel if isinstance(self.model, SharedKernelModel) else None
 
     @property
     def hyperparameters(self) -> np.ndarray:
-        """(n, p): each dimension's fitted kernel parameters (log scale)."""
-        return np.array([gp.kernel_.theta for gp in self._gps])
+        """The per-dimension model's (n, p) fitted kernel parameters (log scale)."""
+        if not isinstance(self.model, PerDimensionModel):
+            raise InputError(f"template {self.name!r}: the shared model has a kernel, not per-dimension GPs")
+        return self.model.hyperparameters
 
     def with_exploration(self, exploration: str) -> SkillTemplate:
         """The same template (same GPs) with another Omega kind."""
@@ -168,14 +163,8 @@ class SkillTemplate:
         return taus
 
     def predict(self, tau) -> tuple[np.ndarray, np.ndarray]:
-        """Theta(tau) and the per-dimension predictive variances, each (n,) for one tau or (N, n) for N."""
-        taus = self._taus(tau)
-        inputs = self.box.normalise(taus)
-        means, variances = np.empty((len(taus), len(self._gps))), np.empty((len(taus), len(self._gps)))
-        for j, gp in enumerate(self._gps):
-            means[:, j], std = gp.predict(inputs, return_std=True)
-            variances[:, j] = std**2
-        variances = np.maximum(variances, 1e-300)  # a covariance must stay positive definite
+        """Theta(tau) and the per-coordinate variances, each (n,) for one tau or (N, n) for N."""
+        means, variances = self.model.predict(self.box.normalise(self._taus(tau)))
         if np.ndim(tau) == 1:
             return means[0], variances[0]
         return means, variances
@@ -190,6 +179,8 @@ class SkillTemplate:
         if self.exploration == "weight_proportional":
             shape = self._typical**2
             return mean, np.diag(shape * variance.sum() / shape.sum())
+        if self.exploration == "isotropic":
+            return mean, np.diag(np.full(variance.size, variance.mean()))
         std = np.sqrt(variance)
         return mean, self._correlation * np.outer(std, std)
 
@@ -218,7 +209,7 @@ class SkillTemplate:
     def __repr__(self) -> str:
         return (
             f"SkillTemplate({self.name!r}, task={self.task!r}, K={len(self.taus)}, "
-            f"theta={self.thetas.shape[1]}, exploration={self.exploration!r})"
+            f"theta={self.thetas.shape[1]}, model={self.model.name!r}, exploration={self.exploration!r})"
         )
 
 

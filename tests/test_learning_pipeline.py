@@ -1,6 +1,14 @@
 """The learning pipeline from recordings to a pool: bad input refused before any work, a small real run, an
 interrupted run that resumes to the same pool, retargeting and shaping checked against their definitions,
-online refinement, and the learned tree on AILA."""
+online refinement, and the learned tree on AILA.
+
+Floating-point results differ between processors and BLAS builds, so a learned pool is reproduced bit for bit
+only on the machine kind that made it. The tests check both sides of that: a learn run twice on this machine
+writes the same files byte for byte, and a pool learned elsewhere (the committed one) or here (a full learn
+on the shared recordings) is judged by what it achieves - training tasks refined to success with the rewards
+the other machine recorded, the learned tree placing the box at tasks no template was trained on - and by
+what is the same on every machine (settings, checksums, the seeded training tasks), never by its thetas'
+digits."""
 
 from __future__ import annotations
 
@@ -23,16 +31,33 @@ from besman.learning.pipeline import LearnError, LearnSettings, _longest_run, le
 from besman.learning.retargeting import WorkspaceMap, fit_workspace_map, retarget
 from besman.sim import Executor, tabletop_world
 from besman.sim.blocks import BlockTask, BlockTaskConfig, Reward, prepare, rollout
+from besman.sim.pick_place import PICK_PLACE_BOUNDS, PLACE_TOLERANCE
 from besman.sim.primitives import point_to_point, shaped
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, SkillTemplatePool
-from besman.trees.files import loads_tree
+from besman.trees.files import load_tree, loads_tree
 from besman.trees.manipulation import PlanGrasp, PlanPlace
-from besman.trees.tabletop import tabletop_run
+from besman.trees.tabletop import run_on_tabletop, tabletop_run
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED_POOL = ROOT / "examples" / "pools" / "pick_place"
 LEARNED_TREE = ROOT / "examples" / "trees" / "grasp_then_place_learned.yaml"
 SMALL = ("--tasks", "2", "--budget", "8")
+# Pick-and-place tasks (object x, y, place x, y) over the task's box that no pool here was trained on.
+UNSEEN_TAUS = (
+    (0.5, -0.05, 0.58, -0.44),
+    (0.47, -0.13, 0.6, -0.36),
+    (0.6, -0.02, 0.47, -0.46),
+    (0.55, -0.1, 0.52, -0.4),
+)
+# Two rewards of one block task closer than this are the same achievement: it is what one second of motion
+# (or 1 m of hand path, or 50 m/s^3 of peak jerk) costs. Measured on a machine of another kind than the one
+# that learned the committed pool: its training thetas replayed there score within 0.012 of the recorded
+# rewards, and a full learn there refines the same training tasks to rewards within 0.019 (the start
+# rewards differ by 0.006 at most, and CMA-ES gains at most 0.03 over the start).
+SAME_REWARD = Reward().per_second
+# A block's instance in a recording: the same frames to within 0.1 s (6 frames at 60 Hz), the tolerance of a
+# hit in the segmentation benchmark.
+SAME_FRAMES = 6
 
 
 def _csv(path: Path, channels: dict[str, np.ndarray], rate: float = 60.0) -> Path:
@@ -53,6 +78,39 @@ def _still_hand(count: int = 300) -> dict[str, np.ndarray]:
 
 def _snapshot(folder: Path) -> dict[str, bytes]:
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _differing_files(folder: Path, other: Path) -> list[str]:
+    """The files that are in only one of two folders or differ in a single byte (nothing: the same)."""
+    first, second = _snapshot(folder), _snapshot(other)
+    return sorted(name for name in first.keys() | second.keys() if first.get(name) != second.get(name))
+
+
+def _learn(demos: Path, out: Path, *options: str) -> Path:
+    """``besman learn`` in a process of its own (its own hash seed: the order of a set of strings differs
+    from run to run)."""
+    command = [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(out), *options]
+    result = subprocess.run(command, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return out
+
+
+def _failed_placements(pool: Path) -> list[tuple]:
+    """The learned tree with ``pool``'s templates on every unseen tau (checked to be no training task of
+    them): the runs that did not succeed or left the box farther than the placement tolerance."""
+    templates = SkillTemplatePool(pool)
+    for name in templates:
+        columns = [PICK_PLACE_BOUNDS.names.index(n) for n in templates[name].box.names]
+        for tau in UNSEEN_TAUS:
+            distances = np.abs(templates[name].taus - np.asarray(tau)[columns]).max(axis=1)
+            assert distances.min() > 1e-3, f"{tau} is a training task of {name!r}"
+    failed = []
+    for tau in UNSEEN_TAUS:
+        summary = run_on_tabletop(load_tree(LEARNED_TREE, pool=pool), {"object": tau[:2], "place": tau[2:]})
+        error = summary["placement_error_m"]
+        if summary["status"] != "SUCCESS" or error is None or error >= PLACE_TOLERANCE:
+            failed.append((tau, summary["status"], error, summary["message"]))
+    return failed
 
 
 @pytest.fixture
@@ -243,13 +301,7 @@ def small_pool(tmp_path_factory) -> Path:
     demos.mkdir()
     for name in ("subject1_run1.tsv", "subject2_run1.tsv"):
         shutil.copy(SHARED_RECORDINGS / name, demos / name)
-    out = root / "pool"
-    subprocess.run(
-        [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(out), *SMALL],
-        check=True,
-        capture_output=True,
-    )
-    return out
+    return _learn(demos, root / "pool", *SMALL)
 
 
 @pytest.mark.slow
@@ -289,10 +341,18 @@ def test_an_interrupted_learn_resumes_to_the_same_pool(small_pool, tmp_path):
     subprocess.run(command, check=True, capture_output=True)
     for name, content in finished.items():  # finished work was kept, not redone
         assert (out / "work" / "refined" / name).read_bytes() == content
-    for name in ("reach", "carry", "return"):
-        resumed, uninterrupted = SkillTemplatePool(out)[name], SkillTemplatePool(small_pool)[name]
-        np.testing.assert_array_equal(resumed.taus, uninterrupted.taus)
-        np.testing.assert_array_equal(resumed.thetas, uninterrupted.thetas)
+    assert _differing_files(out, small_pool) == []  # templates, work files and figures, byte for byte
+
+
+@pytest.mark.slow
+def test_the_same_learn_twice_on_one_machine_writes_the_same_pool_byte_for_byte(small_pool, tmp_path):
+    """Determinism where it holds: the small learn run again from scratch, in another process, writes every
+    file as the first run did - the templates (training tasks, thetas, model parameters, provenance), each
+    stage's work files (segments, labels, imitated and retargeted shapes, refined tasks) and the figures.
+    (Across processors and BLAS builds the digits differ; see the full learn below.)"""
+    out = _learn(small_pool.parent / "demos", tmp_path / "pool", *SMALL)
+    assert sorted(SkillTemplatePool(out)) == ["carry", "reach", "return"]
+    assert _differing_files(out, small_pool) == []
 
 
 @pytest.mark.slow
@@ -377,25 +437,89 @@ def test_the_learned_tree_refines_unsure_instances_in_a_copy_of_the_world_first(
         assert "refined online" in planner.feedback_message
 
 
+@pytest.fixture(scope="module")
+def full_pool(tmp_path_factory) -> Path:
+    """The README's pool learned again here: ``besman learn`` on the 15 shared recordings with the defaults
+    (2.5 minutes on 2 cores)."""
+    from conftest import SHARED_RECORDINGS
+
+    if not SHARED_RECORDINGS.exists():
+        pytest.skip("the shared recordings sit beside the repository (../shared)")
+    return _learn(SHARED_RECORDINGS, tmp_path_factory.mktemp("full") / "pool")
+
+
 @pytest.mark.slow
-def test_a_full_learn_on_the_shared_recordings_makes_the_committed_pool(shared_recordings, tmp_path):
-    """The README's pool is what ``besman learn`` makes of the 15 shared recordings with the defaults."""
-    out = tmp_path / "pool"
-    subprocess.run(
-        [sys.executable, "-m", "besman", "learn", "--demos", str(shared_recordings), "--out", str(out)],
-        check=True,
-        capture_output=True,
-    )
-    learned, committed = SkillTemplatePool(out), SkillTemplatePool(COMMITTED_POOL)
+def test_a_full_learn_on_the_shared_recordings_learns_what_the_committed_pool_learned(full_pool):
+    """The committed pool is what ``besman learn`` makes of the 15 shared recordings with the defaults, up
+    to the digits: another processor or BLAS build retargets to slightly other shapes (inverse kinematics)
+    and CMA-ES carries that into other refined thetas. What every machine makes alike: the run's record
+    (settings, the recordings' checksums), the templates and their training tasks (a seeded Latin hypercube),
+    the blocks' instances in the recordings and the workspace map; and what the learn achieves: every
+    training task refined to success, with the reward the committed pool got for it (to within
+    SAME_REWARD)."""
+    record = json.loads((full_pool / "work" / "learn.json").read_text())
+    assert len(record["recordings"]) == 15
+    assert record == json.loads((COMMITTED_POOL / "work" / "learn.json").read_text())
+    learned, committed = SkillTemplatePool(full_pool), SkillTemplatePool(COMMITTED_POOL)
     assert sorted(learned) == sorted(committed) == ["carry", "reach", "return"]
     for name in learned:
-        np.testing.assert_array_equal(learned[name].taus, committed[name].taus)
-        np.testing.assert_allclose(learned[name].thetas, committed[name].thetas, rtol=0, atol=1e-9)
-        assert all(run["success"] for run in learned[name].provenance["training"])
-    record = json.loads((out / "work" / "learn.json").read_text())
-    assert len(record["recordings"]) == 15 and record == json.loads(
-        (COMMITTED_POOL / "work" / "learn.json").read_text()
-    )
+        fresh, shipped = learned[name], committed[name]
+        np.testing.assert_array_equal(fresh.taus, shipped.taus, err_msg=name)
+        assert fresh.box == shipped.box and fresh.thetas.shape == shipped.thetas.shape
+        facts, expected = fresh.provenance, shipped.provenance
+        for key in ("robot", "recordings", "settings"):
+            assert facts[key] == expected[key], (name, key)
+        instances, expected_instances = facts["instances"], expected["instances"]
+        assert [i["file"] for i in instances] == [i["file"] for i in expected_instances], name
+        shifts = [
+            abs(i[end] - e[end])
+            for i, e in zip(instances, expected_instances, strict=True)
+            for end in ("start_frame", "end_frame")
+        ]
+        assert max(shifts) <= SAME_FRAMES, (name, shifts)
+        mapping, expected_mapping = facts["workspace_map"], expected["workspace_map"]
+        assert mapping["yaw_degrees"] == pytest.approx(expected_mapping["yaw_degrees"], abs=0.5)
+        assert mapping["scale"] == pytest.approx(expected_mapping["scale"], rel=0.01)
+        np.testing.assert_allclose(mapping["offset_m"], expected_mapping["offset_m"], atol=0.002)
+        runs, expected_runs = facts["training"], expected["training"]
+        np.testing.assert_array_equal([r["tau"] for r in runs], [r["tau"] for r in expected_runs])
+        assert [run["tau"] for run in runs if not run["success"]] == [], name
+        gaps = [abs(r["reward"] - e["reward"]) for r, e in zip(runs, expected_runs, strict=True)]
+        assert max(gaps) < SAME_REWARD, (name, gaps)
+
+
+@pytest.mark.slow
+def test_the_learned_tree_places_the_box_with_a_full_pool_learned_here_at_unseen_tasks(full_pool):
+    assert _failed_placements(full_pool) == []
+
+
+@pytest.mark.slow
+def test_the_learned_tree_places_the_box_with_the_committed_pool_at_unseen_tasks():
+    assert _failed_placements(COMMITTED_POOL) == []
+
+
+@pytest.mark.slow
+def test_the_committed_pools_training_thetas_succeed_here_with_their_recorded_rewards():
+    """The committed pool's training results, learned on another machine, rolled out on this one: every
+    template's training theta at its training task succeeds, with a reward within SAME_REWARD of the one
+    its provenance records (which says that every training task succeeded)."""
+    pool = SkillTemplatePool(COMMITTED_POOL)
+    assert sorted(pool) == ["carry", "reach", "return"]
+    for name in pool:
+        template = pool[name]
+        recorded = template.provenance["training"]
+        np.testing.assert_array_equal([run["tau"] for run in recorded], template.taus)
+        assert all(run["success"] for run in recorded), name
+        task = BlockTask(BlockTaskConfig(name, str(COMMITTED_POOL / "work" / "shapes" / f"{name}.json")))
+        here = task.evaluate(template.thetas, template.taus)
+        failed = [
+            (tau, detail.message)
+            for tau, detail in zip(template.taus.tolist(), here.details, strict=True)
+            if not detail.success
+        ]
+        assert failed == [], name
+        gaps = np.abs(here.rewards - [run["reward"] for run in recorded])
+        assert gaps.max() < SAME_REWARD, (name, gaps)
 
 
 def test_a_blocks_instance_is_the_longest_run_of_adjacent_segments_with_its_label():

@@ -1,4 +1,5 @@
-"""The paper's throwing experiment (Fig. 5): the quick run end to end, resuming, and its claims."""
+"""The paper's throwing experiment (Fig. 5) and the field: the quick run end to end, resuming, the summaries,
+the field's rollout accounting, and the claims and goals on hand-made results."""
 
 import itertools
 import json
@@ -6,73 +7,156 @@ import json
 import pytest
 from PIL import Image
 
-from besman.learning.throwing_experiment import CURVE_METHODS, claims
+from besman.learning.throwing_claims import A_ROLLOUTS, claims, goals, rollouts_to_reach
+from besman.learning.throwing_experiment import (
+    CONTEXTUAL_METHODS,
+    CURVE_METHODS,
+    FAILED_DISTANCE,
+    VARIANTS,
+    ZERO_SHOT_METHODS,
+    field_series,
+    summary,
+)
 from tests.helpers import run_cli
 
 
 @pytest.mark.slow
-def test_the_quick_experiment_writes_results_and_both_figures_and_resumes(tmp_path, capsys):
+def test_the_quick_experiment_writes_results_and_figures_and_resumes(tmp_path, capsys):
     out = tmp_path / "throwing"
     code, stdout, _ = run_cli(capsys, "experiment", "throwing", "--quick", "--out", str(out))
     assert code == 0, stdout
     results = json.loads((out / "results.json").read_text())
-    assert results["schema_version"] == 1 and results["config"]["grid"] == 3
-    ks = results["config"]["ks"]
-    for key in ("zero_shot", "st_uncertainty_25"):
-        assert list(results[key]) == [str(k) for k in ks]
-        assert all(v["mean"] > 0 and v["sem"] >= 0 for v in results[key].values())
+    config = results["config"]
+    assert results["schema_version"] == 2 and config["grid"] == 3
+    ks = [str(k) for k in config["ks"]]
+    assert set(results["zero_shot"]) == set(ZERO_SHOT_METHODS)
+    for by_k in (*results["zero_shot"].values(), results["template_refined"]):
+        assert list(by_k) == ks
+        for s in by_k.values():
+            assert s["count"] == 9 and 0 <= s["failed"] <= 9 and s["mean"] > 0 and s["median"] > 0
+    # Every spread was chosen among the candidates on validation targets, its rollouts counted.
+    for choice in results["spreads"].values():
+        assert choice["chosen"] in choice["candidates"] and choice["rollouts"] > 0
     assert set(results["curves"]) == set(CURVE_METHODS)
     for rows in results["curves"].values():
-        assert [row[0] for row in rows] == list(range(results["config"]["curve_rollouts"] + 1))
+        assert [row[0] for row in rows] == list(range(config["curve_rollouts"] + 1))
         means = [row[1] for row in rows]
         assert all(b <= a + 1e-12 for a, b in itertools.pairwise(means))  # the best so far never worsens
     # Every curve that starts from the template starts at its prediction (the same mean).
-    prediction = results["zero_shot"][str(results["config"]["curve_k"])]["mean"]
-    assert results["curves"]["uncertainty"][0][1] == pytest.approx(prediction)
+    prediction = results["zero_shot"]["template"][str(config["curve_k"])]["mean"]
+    for method in ("uncertainty", "weight_proportional", "isotropic"):
+        assert results["curves"][method][0][1] == pytest.approx(prediction)
     assert results["curves"]["tabula_rasa"][0][1] == pytest.approx(results["no_learning"]["mean"])
+    for method in CONTEXTUAL_METHODS:  # checkpoints from 0 to the budget; the mean at 0 is theta_0
+        rows = results["contextual"][method]
+        assert [row[0] for row in rows] == [0, 51, 102]
+        assert rows[0][1] == pytest.approx(results["no_learning"]["mean"])
+    assert set(results["variants"]) == set(VARIANTS)
+    assert results["field"] == field_series(results)
     assert set(results["claims"]) == set(claims(results)) and len(results["claims"]) == 5
-    assert all(isinstance(claim["holds"], bool) for claim in results["claims"].values())
-    assert stdout.count("\t") >= 5
+    assert set(results["goals"]) == set(goals(results)) and len(results["goals"]) == 3
+    assert all(
+        isinstance(c["holds"], bool) for c in (*results["claims"].values(), *results["goals"].values())
+    )
+    assert stdout.count("\t") >= 8
     (training,) = results["training"]  # one seed
     assert training["seed"] == 0 and training["trained_distance"] > 0
-    assert (
-        -1 <= training["theta_vs_tau_distance_correlation"] <= 1 and training["median_noise_to_amplitude"] > 0
-    )
-    for name in ("fig5_top.png", "fig5_bottom.png"):
+    assert set(training["kernels"]) == set(ks) and training["kernels"]["4"]["leave_one_out_distances"]
+    for name in ("fig5_top.png", "fig5_bottom.png", "fig_field.png"):
         with Image.open(out / name) as image:
             assert image.format == "PNG" and image.size[0] > 500
-    # Run again: every stage is read back, and the results are the same.
+    # Run again: every stage is read back, and the results are the same (but for the time it took).
     stages = sorted(path.name for path in (out / "work").iterdir())
     assert run_cli(capsys, "experiment", "throwing", "--quick", "--out", str(out))[0] == 0
-    assert json.loads((out / "results.json").read_text()) == results
+    again = json.loads((out / "results.json").read_text())
+    assert {**again, "minutes": None} == {**results, "minutes": None}
     assert sorted(path.name for path in (out / "work").iterdir()) == stages
     # Another configuration in the same directory is refused before any work.
     code, _, err = run_cli(capsys, "experiment", "throwing", "--quick", "--seeds", "2", "--out", str(out))
     assert code == 2 and "holds a run with another configuration" in err
 
 
-def test_the_claims_follow_the_numbers():
-    def summary(mean):
-        return {"mean": mean, "sem": 0.1}
+def test_a_summary_counts_failed_throws_beside_the_mean():
+    s = summary([0.5, 1.5, 2.0, FAILED_DISTANCE, 1000.0])
+    assert s["failed"] == 2 and s["median"] == 2.0 and s["count"] == 5
+    assert s["mean"] == pytest.approx((0.5 + 1.5 + 2.0 + FAILED_DISTANCE + 1000.0) / 5)
 
-    results = {
-        "config": {"curve_k": 4},
-        "no_learning": summary(4.0),
-        "zero_shot": {"1": summary(3.0), "2": summary(2.0), "4": summary(1.0)},
-        "st_uncertainty_25": {"1": summary(1.5), "2": summary(0.9), "4": summary(0.5)},
-        "curves": {
-            "tabula_rasa": [[r, 4.0 - 0.1 * r, 0.1] for r in range(31)],
-            "weight_proportional": [[r, 1.0 - 0.001 * r, 0.1] for r in range(31)],
-            "uncertainty": [[r, 1.0 - 0.03 * r, 0.1] for r in range(31)],
-            "correlated": [[r, 1.0 - 0.03 * r, 0.1] for r in range(31)],
+
+def s(mean, rollouts=None):
+    summary = {"mean": mean, "sem": 0.1, "median": mean, "failed": 0, "count": 9}
+    return summary if rollouts is None else {**summary, "rollouts": rollouts}
+
+
+def hand_made_results() -> dict:
+    """Results in which every claim and goal holds, by construction."""
+    ks = ("1", "2", "4", "6", "8")
+    zero = dict(zip(ks, (3.0, 2.5, 1.8, 1.2, 1.0), strict=True))
+    tabula_rasa = [[r, 4.0 - 0.1 * r, 0.1, 4.0 - 0.1 * r, 0] for r in range(31)]  # reaches 1.8 (K=4) at 22
+    return {
+        "config": {"curve_k": 4, "refine_rollouts": 25},
+        "no_learning": s(4.0),
+        "zero_shot": {
+            "template": {k: s(v) for k, v in zero.items()},
+            **{m: {k: s(v + 0.5) for k, v in zero.items()} for m in ZERO_SHOT_METHODS if m != "template"},
         },
+        "template_refined": {k: s(v) for k, v in zip(ks, (1.3, 0.9, 0.5, 0.4, 0.3), strict=True)},
+        "curves": {
+            "tabula_rasa": tabula_rasa,
+            "weight_proportional": [[r, 1.8 - 0.005 * r, 0.1] for r in range(31)],
+            "uncertainty": [[r, 1.8 - 0.05 * r, 0.1] for r in range(31)],
+        },
+        "contextual": {
+            "creps": [[0, 4.0], [400, 3.5], [1000, 2.0]],
+            "contextual_cmaes": [[0, 4.0], [900, 3.0]],
+        },
+        "rollouts": {k: {"training": 200.0 * int(k), "kernel_choice": 12.0 * int(k)} for k in ks},
     }
+
+
+def test_the_claims_and_goals_follow_the_numbers():
+    results = hand_made_results()
     found = claims(results)
-    assert found["a_prediction_improves_with_k"]["holds"]
-    assert found["b_refined_template_beats_prediction_for_small_k"]["extra_training_tasks_to_match"] == 3
-    assert found["b_refined_template_beats_prediction_for_small_k"]["holds"]
-    assert found["c_uncertainty_beats_tabula_rasa_everywhere"]["holds"]
-    assert found["d_weight_proportional_loses_its_advantage"]["holds"]
-    assert found["e_tabula_rasa_needs_about_20_rollouts"]["rollouts_to_reach_prediction"] == 30
+    assert all(claim["holds"] for claim in found.values()), found
+    assert found["b_refined_template_beats_prediction_for_small_k"]["extra_training_tasks_to_match"] == 5
+    assert found["e_tabula_rasa_needs_about_20_rollouts"]["rollouts_to_reach_prediction"] == 22
+    reached = goals(results)
+    assert all(goal["holds"] for goal in reached.values()), reached
+    # The template at K = 2 (424 rollouts) meets C-REPS's 400-rollout checkpoint, K = 6 (1272) the 1000 one.
+    compared = reached["template_beats_contextual_policy_search_at_equal_rollouts"]["comparisons"]["creps"]
+    assert [(row["k"], row["creps"]) for row in compared] == [(2, 3.5), (4, 3.5), (6, 2.0), (8, 2.0)]
+
     results["curves"]["uncertainty"][5][1] = 10.0
     assert claims(results)["c_uncertainty_beats_tabula_rasa_everywhere"]["rollouts_where_not"] == [5]
+    # (a) and (e) are one reading: a prediction that tabula rasa reaches within 9 rollouts fails both.
+    results["zero_shot"]["template"]["4"] = s(3.3)
+    found = claims(results)
+    assert results["curves"]["tabula_rasa"][A_ROLLOUTS][1] < 3.3
+    assert not found["a_prediction_improves_with_k"]["holds"]
+    assert not found["e_tabula_rasa_needs_about_20_rollouts"]["holds"]
+    assert not goals(results)["prediction_twice_as_close_as_no_learning"]["holds"]
+    # A baseline as good as the template from K = 4 on is named with its Ks.
+    results["zero_shot"]["template"]["4"] = s(1.8)
+    results["zero_shot"]["nearest_neighbour"]["6"] = s(1.0)
+    beaten = goals(results)["template_beats_every_zero_shot_baseline_from_k4"]
+    assert not beaten["holds"] and beaten["ks_where_a_baseline_is_as_good"] == {"nearest_neighbour": [6]}
+
+
+def test_the_field_counts_training_kernel_choice_and_the_new_tasks_rollouts():
+    results = {
+        **hand_made_results(),
+        "variants": {"bootstrapped": {"1": s(3.0, {"training": 190.0, "kernel_choice": 0.0})}},
+    }
+    results["curves"]["isotropic"] = [[0, 1.8, 0.1], [1, 1.7, 0.1]]
+    results["curves"]["nearest_start"] = [[0, 2.0, 0.1], [1, 1.9, 0.1]]
+    field = field_series(results)
+    assert field["no_learning"][0][:2] == [0.0, 4.0]
+    assert field["zero_shot_template"][2][:2] == [800.0 + 48.0, 1.8]  # K = 4: training and kernel choice
+    assert field["zero_shot_nearest_neighbour"][2][:2] == [800.0, 2.3]  # training only
+    assert field["template_refined"][0][:2] == [200.0 + 12.0 + 25, 1.3]
+    assert field["curve_tabula_rasa"][3][0] == 3
+    assert field["curve_uncertainty"][1][0] == 848 + 1  # curve_k's template and one rollout
+    assert field["curve_nearest_start"][1][0] == 800 + 1
+    assert field["creps"][2][:2] == [1000.0, 2.0]
+    assert field["variant_bootstrapped"][0][:2] == [190.0, 3.0]
+    assert rollouts_to_reach(field["curve_uncertainty"], 1.75) == 849
+    assert rollouts_to_reach(field["creps"], 1.0) is None

@@ -387,6 +387,7 @@ def test_overlays_and_the_tree_panel_follow_a_template_run():
         taus,
         [p.theta for p in approaches],
         TaskBounds(("x", "y"), (0.45, -0.2), (0.65, 0.05)),
+        prior_spread=0.1,
     )
     root = py_trees.composites.Sequence(
         "reach",

@@ -35,12 +35,15 @@ def _experiment_throwing(args: argparse.Namespace) -> int:
         ExperimentConfig.quick(args.seeds or 1) if args.quick else ExperimentConfig(seeds=args.seeds or 3)
     )
     results = Experiment(config, Path(args.out), backend=args.backend).run()
-    for claim, facts in results["claims"].items():
-        numbers = ", ".join(
-            f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in facts.items() if k != "holds"
-        )
-        print(f"{'holds' if facts['holds'] else 'FAILS'}\t{claim}: {numbers}")
-    print(f"wrote {Path(args.out) / 'results.json'}, fig5_top.png, fig5_bottom.png")
+    for kind in ("claims", "goals"):
+        for name, facts in results[kind].items():
+            numbers = ", ".join(
+                f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"
+                for k, v in facts.items()
+                if k not in ("holds", "comparisons")
+            )
+            print(f"{'holds' if facts['holds'] else 'FAILS'}\t{name}: {numbers}")
+    print(f"wrote {Path(args.out) / 'results.json'}, fig5_top.png, fig5_bottom.png, fig_field.png")
     return 0
 
 
