@@ -2,9 +2,11 @@
 
 - ``fig5_top.png`` - distance to target vs the number of training tasks K: No Learning, the template's
   prediction, the template refined with uncertainty exploration, the per-dimension template of the first
-  reproduction, and the variants beyond the paper (dashed, labelled "variant"); mean +- SEM, log scale.
+  reproduction, and the variants beyond the paper (dashed, labelled "variant"); mean +- SEM (filled
+  markers), median (open markers) and the number of failed throws where there are any; log scale.
 - ``fig5_bottom.png`` - learning curves at K = curve_k: distance of the best rollout so far vs rollouts for
-  CMA-ES tabula rasa and from the template with each exploration, and from the nearest training theta.
+  CMA-ES tabula rasa and from the template with each exploration, and from the nearest training theta;
+  mean +- SEM bands and medians (dotted).
 - ``fig_field.png`` - every method's distance on the grid against the total rollouts it spent (training
   and kernel choice included), log-log: the paper's methods, zero-shot baselines, refinement baselines,
   contextual policy search and the variants.
@@ -50,9 +52,30 @@ def plot_results(results: dict, directory: Path) -> tuple[Path, Path, Path]:
 
 
 def _errorbar(axes, xs, summaries, **style):
+    """Means +- SEM, medians as open markers of the same colour, and failed throws written beside."""
+    summaries = list(summaries)
     means = np.array([s["mean"] for s in summaries])
     sems = np.array([s["sem"] for s in summaries])
-    axes.errorbar(xs, means, yerr=sems, capsize=3, **style)
+    line = axes.errorbar(xs, means, yerr=sems, capsize=3, **style).lines[0]
+    colour = line.get_color()
+    axes.plot(
+        xs,
+        [s["median"] for s in summaries],
+        linestyle="none",
+        marker=style.get("marker", "o"),
+        markerfacecolor="none",
+        color=colour,
+    )
+    for x, mean, s in zip(xs, means, summaries, strict=True):
+        if s["failed"]:
+            axes.annotate(
+                f"{s['failed']}x",
+                (x, mean),
+                textcoords="offset points",
+                xytext=(4, 4),
+                fontsize=6,
+                color=colour,
+            )
 
 
 def _top(results: dict, path: Path) -> Path:
@@ -88,6 +111,8 @@ def _top(results: dict, path: Path) -> Path:
             linestyle="--",
             label=LABELS[f"variant_{variant}"],
         )
+    axes.plot([], [], linestyle="none", marker="o", markerfacecolor="none", color="black", label="median")
+    axes.plot([], [], linestyle="none", marker="$n$x", color="black", label="failed throws (of grid x seeds)")
     title = f"PA-10 throwing: distance vs training tasks, {results['config']['seeds']} seed(s)"
     return _finish(figure, axes, ("training tasks K", "distance to target (m)", title), path)
 
@@ -100,15 +125,18 @@ def _bottom(results: dict, path: Path) -> Path:
         axes.fill_between(
             rows[:, 0], rows[:, 1] - rows[:, 2], rows[:, 1] + rows[:, 2], color=line.get_color(), alpha=0.15
         )
+        axes.plot(rows[:, 0], rows[:, 3], color=line.get_color(), linestyle=":", linewidth=1)
+    axes.plot([], [], color="black", linestyle=":", linewidth=1, label="medians (dotted)")
     k = results["config"]["curve_k"]
     prediction = results["zero_shot"]["template"][str(k)]["mean"]
-    axes.axhline(prediction, color="black", linestyle=":", label=f"prediction at K={k}")
+    axes.axhline(prediction, color="black", linestyle="--", linewidth=0.8, label=f"prediction at K={k}")
     labels = ("rollouts", "distance of the best rollout so far (m)", f"Learning curves at K = {k}")
     return _finish(figure, axes, labels, path)
 
 
 def _field(results: dict, path: Path) -> Path:
     figure, axes = plt.subplots(figsize=(8.4, 5.4))
+    axes.set_prop_cycle(color=plt.get_cmap("tab20").colors)  # 17 methods: no colour twice
     for name, rows in results["field"].items():
         rows = np.array(rows, dtype=float)
         xs = np.maximum(rows[:, 0], 1.0)  # No Learning spends nothing: drawn at 1 on the log axis

@@ -59,9 +59,11 @@ def register(commands) -> None:
     experiment = commands.add_parser("experiment", help="the paper's experiments")
     experiment_commands = experiment.add_subparsers(dest="experiment_command", metavar="NAME", required=True)
     throwing = experiment_commands.add_parser(
-        "throwing", help="skill templates on PA-10 throwing (Fig. 5): results.json and two plots"
+        "throwing", help="skill templates on PA-10 throwing (Fig. 5) and the field: results.json, three plots"
     )
-    throwing.add_argument("--quick", action="store_true", help="a small run (3 x 3 grid, K up to 4; minutes)")
+    throwing.add_argument(
+        "--quick", action="store_true", help="a small run (3 x 3 grid, K up to 4; about a minute)"
+    )
     throwing.add_argument("--seeds", type=int, help="independent repetitions (default 3; 1 with --quick)")
     throwing.add_argument("--backend", choices=("threads", "ray"), default="threads")
     throwing.add_argument("--out", required=True, help="the results directory (an interrupted run resumes)")
