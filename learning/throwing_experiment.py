@@ -139,6 +139,7 @@ class Experiment:
     backend: str = "threads"
     progress: bool = True
     task: ThrowingTask = field(init=False)
+    _stages: dict[str, dict[str, np.ndarray]] = field(init=False, default_factory=dict)  # read once
 
     def __post_init__(self) -> None:
         self.directory = Path(self.directory)
@@ -176,13 +177,16 @@ class Experiment:
             write_atomically(stored, (json.dumps(config, indent=2) + "\n").encode())
 
     def _stage(self, name: str, compute: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
-        """A stage's arrays: read from DIR/work if a previous run finished it, else computed and written."""
-        path = self.directory / "work" / f"{name}.npz"
-        if path.exists():
-            return read_npz(path)
-        arrays = compute()
-        write_atomically(path, npz_bytes(arrays))
-        return arrays
+        """A stage's arrays: read from DIR/work if a previous run finished it, else computed and written;
+        kept in memory, since templates, costs and diagnostics ask for the same training stages again."""
+        if name not in self._stages:
+            path = self.directory / "work" / f"{name}.npz"
+            if path.exists():
+                self._stages[name] = read_npz(path)
+            else:
+                self._stages[name] = compute()
+                write_atomically(path, npz_bytes(self._stages[name]))
+        return self._stages[name]
 
     def _bar(self, description: str, total: int):
         return tqdm(total=total, desc=description, unit="rollout", disable=not self.progress, leave=False)
