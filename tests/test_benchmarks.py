@@ -82,10 +82,17 @@ def test_viewer_benchmark_reports_its_cost_beside_the_run():
 
 @pytest.mark.slow
 def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings, tmp_path):
+    # Five of the fifteen recordings, both subjects (the whole set takes ten minutes; its figures are the
+    # README's): every method, fold and score is computed the same way.
+    data = tmp_path / "recordings"
+    data.mkdir()
+    for name in ("subject1_run1", "subject1_run2", "subject1_run3", "subject2_run1", "subject2_run2"):
+        for suffix in (".tsv", "_manually_segmented.json"):
+            (data / f"{name}{suffix}").symlink_to(shared_recordings / f"{name}{suffix}")
     plot = tmp_path / "segmentation.png"
-    report = run_benchmark("segmentation.py", "--data", str(shared_recordings), "--plot", str(plot))
+    report = run_benchmark("segmentation.py", "--data", str(data), "--plot", str(plot))
     assert plot.read_bytes().startswith(b"\x89PNG")
-    assert report["recordings"] == 15
+    assert report["recordings"] == 5
     methods = report["methods"]
     assert set(methods) == {
         "ours, nothing tuned",
@@ -100,7 +107,7 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings,
         "subject 2 (settings from subject 1)",
         "all (leave one recording out)",
     ]
-    assert report["subjects"] == {"1": 9, "2": 6}
+    assert report["subjects"] == {"1": 3, "2": 2}
     for rows in methods.values():
         assert list(rows) == folds
         for scores in rows.values():
@@ -108,7 +115,7 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings,
             assert scores["hausdorff_s"] > 0 and scores["seconds"] > 0
         # One setting chosen on the other subject; one per held-out recording at most.
         assert len(rows[folds[0]]["settings"]) == len(rows[folds[1]]["settings"]) == 1
-        assert 1 <= len(rows[folds[2]]["settings"]) <= 15
+        assert 1 <= len(rows[folds[2]]["settings"]) <= 5
     for fold in folds:
         for key in ("f1_0.1", "f1_0.2"):
             assert report["ours_minus_speed_minima"][fold][key] == pytest.approx(
@@ -116,7 +123,7 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings,
             )
     assert methods["ours, nothing tuned"][folds[2]]["settings"] == ["null"]  # the defaults: nothing chosen
     long = report["long_recording"]
-    assert long["duration_s"] > 100 and math.isfinite(long["exact_seconds"])
+    assert long["duration_s"] > 50 and math.isfinite(long["exact_seconds"])
     assert 0.9 < long["pruned_vs_exact_f1_0.1"] <= 1
 
 
