@@ -16,19 +16,45 @@ model::
 Position limits are not repeated here: they are read from the compiled model (``jnt_range``), so the model
 stays the single source of truth for them. Velocity, acceleration and jerk limits are in joint units per
 second (rad/s or m/s, and so on); the README of each robot says where every number comes from.
+
+Schema version 2 adds what lets any arm run the same skills (version 1 files stay valid):
+
+- ``"model"`` may name a file inside MuJoCo Menagerie, ``{"menagerie": "universal_robots_ur5e/ur5e.xml"}``
+  (found on this machine by :mod:`besman.robots.menagerie`, never downloaded), and ``"attach"`` lists models
+  attached at a site of it (a gripper on a flange: ``{"model": ..., "site": "attachment_site", "prefix":
+  "gripper/"}``; names inside get the prefix, the keyframe is extended). ``"floor"`` adds besman's stage
+  (floor and lights) to a model that has none, ``"mount"`` (``position``, ``yaw_degrees``) moves the robot's
+  root bodies, ``"options"`` sets simulation options (``impratio``, ``cone``) an attached part needs, and
+  ``"exclude"`` lists body pairs whose contacts are ignored. ``"velocity_feedforward": true`` adds the
+  commanded velocity times kv/kp to each position actuator's command: such an actuator's damping acts on
+  the joint's velocity, not on its error, so without it a joint lags kv/kp x its speed (0.2 s x speed on
+  MuJoCo Menagerie's UR5e); with it the actuator is a PD controller on the commanded state.
+  ``"gravity_compensation": true`` compensates the weight of the robot's own bodies (MuJoCo's ``gravcomp``),
+  as an arm's controller does; what it holds still weighs.
+- ``"arms"``: per arm its joint groups, its tool-centre point (a site, or ``{"body", "position"}`` that adds
+  one; its z axis points out of the hand, its y axis along the fingers' closing) and its gripper: the joint
+  group of the fingers, the actuator, the map between opening (m per finger, half the aperture between the
+  pads) and actuator command as matching ``opening`` / ``command`` lists, the opening ``open`` that grasps
+  and releases, the pad geoms of each side (``pads``: two lists) and the opening's velocity, acceleration and
+  jerk limits. With several arms working at once, groups that two arms share (a waist) are held.
+- ``"tabletop"``: where the tabletop world puts its table and shelf boards and where objects and targets may
+  be, in the robot's frame (the world's, with the robot standing at the origin).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from besman.skills.errors import BesmanError
 from besman.skills.storage import check_schema_version, optional_field, read_json, require_field
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+# Simulation options a description may set (an attached gripper may need them; the parent's are kept).
+OPTIONS = ("impratio", "cone", "timestep")
 
 
 class DescriptionError(BesmanError):
@@ -55,15 +81,111 @@ class GroupSpec:
 
 
 @dataclass(frozen=True)
+class ModelSource:
+    """A model file: beside the description (``menagerie`` False) or a path inside MuJoCo Menagerie."""
+
+    file: str
+    menagerie: bool
+
+
+@dataclass(frozen=True)
+class Attachment:
+    """A model attached at a site of the robot's model, its names prefixed."""
+
+    model: ModelSource
+    site: str
+    prefix: str
+
+
+@dataclass(frozen=True)
+class ToolCentrePoint:
+    """An arm's tool frame: an existing ``site``, or a new site ``site`` on ``body`` at ``position`` (m)
+    turned by ``quaternion`` (w, x, y, z) in the body's frame."""
+
+    site: str
+    body: str | None = None
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    quaternion: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class GripperSpec:
+    """A gripper: its fingers' joint group, the actuator, opening (m per finger) <-> command as two matching
+    monotone lists, the opening that grasps and releases, the pad geoms of each side and the opening's
+    motion limits (m/s, m/s^2, m/s^3 per finger)."""
+
+    group: str
+    actuator: str
+    opening: tuple[float, ...]
+    command: tuple[float, ...]
+    open: float
+    pads: tuple[tuple[str, ...], tuple[str, ...]]
+    limits: JointLimitSpec
+
+
+@dataclass(frozen=True)
+class ArmSpec:
+    """An arm: the joint groups it moves (in order), its tool-centre point and its gripper (if any)."""
+
+    name: str
+    groups: tuple[str, ...]
+    tcp: ToolCentrePoint
+    gripper: GripperSpec | None
+
+
+@dataclass(frozen=True)
+class Board:
+    """A horizontal rectangle: top at ``height``, covering [x0, x1] x [y0, y1] (m, robot frame)."""
+
+    height: float
+    x: tuple[float, float]
+    y: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class TabletopLayout:
+    """The tabletop world around a robot: the table and the shelf board on it, and the areas (x, y ranges)
+    where objects stand on the table and where they are to be placed on the shelf."""
+
+    table: Board
+    shelf: Board
+    objects: tuple[tuple[float, float], tuple[float, float]]
+    places: tuple[tuple[float, float], tuple[float, float]]
+
+
+@dataclass(frozen=True)
+class Mount:
+    """Where the robot's root bodies are moved: ``position`` (m) and a turn ``yaw`` (rad) about z."""
+
+    position: tuple[float, float, float]
+    yaw: float
+
+
+@dataclass(frozen=True)
 class RobotDescription:
     """The parsed ``description.json`` of one robot."""
 
     name: str
     title: str
-    model_file: Path
+    folder: Path
+    model: ModelSource
     keyframe: str
     groups: dict[str, GroupSpec]
     limits: dict[str, JointLimitSpec]
+    attach: tuple[Attachment, ...] = ()
+    floor: bool = False
+    mount: Mount | None = None
+    options: dict[str, Any] = field(default_factory=dict)
+    exclude: tuple[tuple[str, str], ...] = ()
+    arms: dict[str, ArmSpec] = field(default_factory=dict)
+    tabletop: TabletopLayout | None = None
+    velocity_feedforward: bool = False
+    gravity_compensation: bool = False
+
+    @property
+    def file(self) -> Path:
+        """The description file."""
+        return self.folder / "description.json"
 
 
 def _field(mapping: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
@@ -78,45 +200,238 @@ def _string_list(value: Any, where: str) -> tuple[str, ...]:
     return tuple(value)
 
 
+def _numbers(value: Any, where: str, count: int | None = None) -> tuple[float, ...]:
+    if (
+        not isinstance(value, list)
+        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+        or not all(math.isfinite(v) for v in value)
+        or (count is not None and len(value) != count)
+    ):
+        size = f"{count} " if count is not None else ""
+        raise DescriptionError(f"{where}: expected a list of {size}finite numbers, got {value!r}")
+    return tuple(float(v) for v in value)
+
+
+def _range(value: Any, where: str) -> tuple[float, float]:
+    low, high = _numbers(value, where, 2)
+    if not low < high:
+        raise DescriptionError(f"{where}: expected [low, high] with low < high, got {value!r}")
+    return low, high
+
+
+def _object(value: Any, where: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise DescriptionError(f"{where}: expected an object, got {value!r}")
+    return value
+
+
+def _limits(spec: Any, where: str) -> JointLimitSpec:
+    spec = _object(spec, where)
+    values = {}
+    for key in ("velocity", "acceleration", "jerk"):
+        value = _field(spec, key, (int, float), where)
+        if not math.isfinite(value) or value <= 0:
+            raise DescriptionError(f"{where}.{key}: must be a finite positive number, got {value!r}")
+        values[key] = float(value)
+    return JointLimitSpec(**values)
+
+
+def _model_source(value: Any, where: str) -> ModelSource:
+    if isinstance(value, str):
+        return ModelSource(value, menagerie=False)
+    if isinstance(value, dict) and set(value) == {"menagerie"} and isinstance(value["menagerie"], str):
+        return ModelSource(value["menagerie"], menagerie=True)
+    raise DescriptionError(
+        f'{where}: expected a file name or {{"menagerie": "folder/file.xml"}}, got {value!r}'
+    )
+
+
+def _tcp(value: Any, where: str) -> ToolCentrePoint:
+    value = _object(value, where)
+    site = _field(value, "site", str, where)
+    body = optional_field(value, "body", str, where, DescriptionError)
+    if body is None:
+        if set(value) - {"site"}:
+            raise DescriptionError(f"{where}: a position or quaternion needs the body the new site is on")
+        return ToolCentrePoint(site)
+    quaternion = _numbers(value.get("quaternion", [1, 0, 0, 0]), f"{where}.quaternion", 4)
+    if not math.isclose(math.hypot(*quaternion), 1.0, abs_tol=1e-6):
+        raise DescriptionError(f"{where}.quaternion: must have unit length, got {list(quaternion)}")
+    return ToolCentrePoint(
+        site, body, _numbers(value.get("position", [0, 0, 0]), f"{where}.position", 3), quaternion
+    )
+
+
+def _gripper(value: Any, where: str) -> GripperSpec:
+    value = _object(value, where)
+    opening = _numbers(_field(value, "opening", list, where), f"{where}.opening")
+    command = _numbers(_field(value, "command", list, where), f"{where}.command")
+    if len(opening) < 2 or len(opening) != len(command):
+        raise DescriptionError(f"{where}: opening and command must be matching lists of 2 or more numbers")
+    for name, values in (("opening", opening), ("command", command)):
+        steps = [b - a for a, b in itertools.pairwise(values)]
+        if not (all(step > 0 for step in steps) or all(step < 0 for step in steps)):
+            raise DescriptionError(f"{where}.{name}: must rise or fall strictly, got {list(values)}")
+    if min(opening) < 0:
+        raise DescriptionError(f"{where}.opening: openings are >= 0 m, got {list(opening)}")
+    grasp_open = _field(value, "open", (int, float), where)
+    if not min(opening) < grasp_open <= max(opening):
+        raise DescriptionError(
+            f"{where}.open: must lie in the opening's range "
+            f"({min(opening):g}, {max(opening):g}], got {grasp_open!r}"
+        )
+    pads = value.get("pads")
+    if not isinstance(pads, list) or len(pads) != 2:
+        raise DescriptionError(f"{where}.pads: expected two lists of geom names (one per side), got {pads!r}")
+    sides = tuple(_string_list(side, f"{where}.pads[{i}]") for i, side in enumerate(pads))
+    if not all(sides):
+        raise DescriptionError(f"{where}.pads: each side needs at least one geom")
+    return GripperSpec(
+        group=_field(value, "group", str, where),
+        actuator=_field(value, "actuator", str, where),
+        opening=opening,
+        command=command,
+        open=float(grasp_open),
+        pads=(sides[0], sides[1]),
+        limits=_limits(_field(value, "limits", dict, where), f"{where}.limits"),
+    )
+
+
+def _arm(name: str, value: Any, groups: dict[str, GroupSpec], where: str) -> ArmSpec:
+    value = _object(value, where)
+    members = _string_list(_field(value, "groups", list, where), f"{where}.groups")
+    for group in members:
+        if group not in groups:
+            raise DescriptionError(f"{where}.groups: no group {group!r}; groups: {', '.join(groups)}")
+    gripper = value.get("gripper")
+    gripper = None if gripper is None else _gripper(gripper, f"{where}.gripper")
+    if gripper is not None and gripper.group not in groups:
+        raise DescriptionError(
+            f"{where}.gripper.group: no group {gripper.group!r}; groups: {', '.join(groups)}"
+        )
+    return ArmSpec(name, members, _tcp(_field(value, "tcp", dict, where), f"{where}.tcp"), gripper)
+
+
+def _board(value: Any, where: str) -> Board:
+    value = _object(value, where)
+    height = _field(value, "height", (int, float), where)
+    return Board(float(height), _range(value.get("x"), f"{where}.x"), _range(value.get("y"), f"{where}.y"))
+
+
+def _area(value: Any, where: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    value = _object(value, where)
+    return _range(value.get("x"), f"{where}.x"), _range(value.get("y"), f"{where}.y")
+
+
+def _tabletop(value: Any, where: str) -> TabletopLayout:
+    value = _object(value, where)
+    layout = TabletopLayout(
+        table=_board(_field(value, "table", dict, where), f"{where}.table"),
+        shelf=_board(_field(value, "shelf", dict, where), f"{where}.shelf"),
+        objects=_area(_field(value, "objects", dict, where), f"{where}.objects"),
+        places=_area(_field(value, "places", dict, where), f"{where}.places"),
+    )
+    for name, (xs, ys), board in (("objects", layout.objects, "table"), ("places", layout.places, "shelf")):
+        support = getattr(layout, board)
+        if not (
+            support.x[0] <= xs[0]
+            and xs[1] <= support.x[1]
+            and support.y[0] <= ys[0]
+            and ys[1] <= support.y[1]
+        ):
+            raise DescriptionError(f"{where}.{name}: the area must lie on the {board}")
+    return layout
+
+
 def read_description(path: Path) -> RobotDescription:
     """Reads and validates a ``description.json``; errors name the file and the offending field."""
     path = Path(path)
     raw = read_json(path, DescriptionError)
     where = str(path)
-    check_schema_version(raw, SCHEMA_VERSION, where, DescriptionError)
+    check_schema_version(raw, (1, SCHEMA_VERSION), where, DescriptionError)
 
     groups: dict[str, GroupSpec] = {}
     for group_name, group in _field(raw, "groups", dict, where).items():
         group_where = f"{where}.groups.{group_name}"
-        if not isinstance(group, dict):
-            raise DescriptionError(f"{group_where}: expected an object, got {group!r}")
+        group = _object(group, group_where)
         groups[group_name] = GroupSpec(
             name=group_name,
             joints=_string_list(group.get("joints", []), f"{group_where}.joints"),
             site=optional_field(group, "site", str, group_where, DescriptionError),
             equalities=_string_list(group.get("equalities", []), f"{group_where}.equalities"),
         )
+    limits = {
+        joint: _limits(spec, f"{where}.limits.{joint}")
+        for joint, spec in _field(raw, "limits", dict, where).items()
+    }
+    if raw["schema_version"] == 1:
+        return RobotDescription(
+            name=_field(raw, "name", str, where),
+            title=optional_field(raw, "title", str, where, DescriptionError) or "",
+            folder=path.parent,
+            model=ModelSource(_field(raw, "model", str, where), menagerie=False),
+            keyframe=_field(raw, "keyframe", str, where),
+            groups=groups,
+            limits=limits,
+        )
 
-    limits: dict[str, JointLimitSpec] = {}
-    for joint, spec in _field(raw, "limits", dict, where).items():
-        joint_where = f"{where}.limits.{joint}"
-        if not isinstance(spec, dict):
-            raise DescriptionError(f"{joint_where}: expected an object, got {spec!r}")
-        values = {}
-        for key in ("velocity", "acceleration", "jerk"):
-            value = _field(spec, key, (int, float), joint_where)
-            if not math.isfinite(value) or value <= 0:
-                raise DescriptionError(
-                    f"{joint_where}.{key}: must be a finite positive number, got {value!r}"
-                )
-            values[key] = float(value)
-        limits[joint] = JointLimitSpec(**values)
-
+    attach = []
+    for index, item in enumerate(raw.get("attach", [])):
+        item_where = f"{where}.attach[{index}]"
+        item = _object(item, item_where)
+        attach.append(
+            Attachment(
+                _model_source(item.get("model"), f"{item_where}.model"),
+                _field(item, "site", str, item_where),
+                _field(item, "prefix", str, item_where),
+            )
+        )
+    mount = raw.get("mount")
+    if mount is not None:
+        mount = _object(mount, f"{where}.mount")
+        mount = Mount(
+            _numbers(mount.get("position", [0, 0, 0]), f"{where}.mount.position", 3),
+            math.radians(_numbers([mount.get("yaw_degrees", 0)], f"{where}.mount.yaw_degrees")[0]),
+        )
+    options = _object(raw.get("options", {}), f"{where}.options")
+    unknown = sorted(set(options) - set(OPTIONS))
+    if unknown:
+        raise DescriptionError(
+            f"{where}.options.{unknown[0]}: not a known option; options: {', '.join(OPTIONS)}"
+        )
+    exclude = raw.get("exclude", [])
+    if not isinstance(exclude, list):
+        raise DescriptionError(f"{where}.exclude: expected a list of body pairs, got {exclude!r}")
+    pairs = []
+    for index, pair in enumerate(exclude):
+        names = _string_list(pair, f"{where}.exclude[{index}]")
+        if len(names) != 2:
+            raise DescriptionError(f"{where}.exclude[{index}]: expected two body names, got {pair!r}")
+        pairs.append((names[0], names[1]))
+    arms = {
+        name: _arm(name, value, groups, f"{where}.arms.{name}")
+        for name, value in _object(raw.get("arms", {}), f"{where}.arms").items()
+    }
+    tabletop = raw.get("tabletop")
+    switches = {key: raw.get(key, False) for key in ("floor", "velocity_feedforward", "gravity_compensation")}
+    for key, value in switches.items():
+        if not isinstance(value, bool):
+            raise DescriptionError(f"{where}.{key}: expected true or false, got {value!r}")
     return RobotDescription(
         name=_field(raw, "name", str, where),
         title=optional_field(raw, "title", str, where, DescriptionError) or "",
-        model_file=path.parent / _field(raw, "model", str, where),
+        folder=path.parent,
+        model=_model_source(raw.get("model"), f"{where}.model"),
         keyframe=_field(raw, "keyframe", str, where),
         groups=groups,
         limits=limits,
+        attach=tuple(attach),
+        floor=switches["floor"],
+        mount=mount,
+        options=options,
+        exclude=tuple(pairs),
+        arms=arms,
+        tabletop=None if tabletop is None else _tabletop(tabletop, f"{where}.tabletop"),
+        velocity_feedforward=switches["velocity_feedforward"],
+        gravity_compensation=switches["gravity_compensation"],
     )

@@ -1,9 +1,11 @@
-"""A robot: a compiled MuJoCo model together with its description (joint groups and limits).
+"""A robot: a compiled MuJoCo model together with its description (joint groups, limits and arms).
 
-``load(name)`` finds the robot's folder (Menagerie layout, shipped as package data), compiles its scene and
-checks the description against the model: every joint, site and equality it names must exist, every actuated
-joint must have velocity, acceleration and jerk limits. The result is a :class:`Robot` whose
-:class:`JointGroup` objects carry the index arrays and limit vectors that controllers and learners need.
+``load(name)`` finds the robot's folder (Menagerie layout, shipped as package data), assembles its model
+(:mod:`besman.robots.assembly`), compiles it and checks the description against the model: every joint,
+site, equality, actuator and geom it names must exist, every actuated joint must have velocity, acceleration
+and jerk limits. The result is a :class:`Robot` whose :class:`JointGroup` objects carry the index arrays and
+limit vectors that controllers and learners need, and whose :class:`RobotArm` objects say what each arm
+moves, where its tool is and how its gripper works.
 """
 
 from __future__ import annotations
@@ -16,8 +18,10 @@ from types import MappingProxyType
 import mujoco
 import numpy as np
 
+from besman.robots.assembly import build_spec
 from besman.robots.description import DescriptionError, RobotDescription, read_description
-from besman.skills.errors import InputError
+from besman.robots.gripper import Gripper
+from besman.skills.errors import InputError, UnknownNameError
 
 ROBOTS_DIR = Path(__file__).resolve().parent
 DESCRIPTION_FILE = "description.json"
@@ -58,6 +62,17 @@ class JointGroup:
         return len(self.joints)
 
 
+@dataclass(frozen=True, eq=False)
+class RobotArm:
+    """An arm of a compiled robot: the joint groups it moves (in order), its tool-centre point site and its
+    gripper (None without one)."""
+
+    name: str
+    groups: tuple[str, ...]
+    tcp: str
+    gripper: Gripper | None
+
+
 class Robot:
     """A compiled robot model plus its description.
 
@@ -65,30 +80,44 @@ class Robot:
         name: the robot's name (``besman.robots.available()`` lists them).
         model: the compiled ``mujoco.MjModel`` of the robot's scene.
         groups: joint groups by name, e.g. ``robot.groups["right_arm"]``.
-        folder: the robot's model folder (``<robot>.xml``, ``scene.xml``, ``README.md``, ...).
+        arms: arms by name, in the description's order (the first is the one that works alone).
+        folder: the robot's folder (``description.json``, ``README.md``, ...).
     """
 
     def __init__(self, description: RobotDescription, model: mujoco.MjModel) -> None:
         self.description = description
         self.model = model
         self.name = description.name
-        self.folder = description.model_file.parent
+        self.folder = description.folder
         self.keyframe = description.keyframe
         self.groups: Mapping[str, JointGroup] = MappingProxyType(
             {name: self._compile_group(name) for name in description.groups}
+        )
+        self.arms: Mapping[str, RobotArm] = MappingProxyType(
+            {name: self._compile_arm(name) for name in description.arms}
         )
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, nq={self.model.nq}, nu={self.model.nu}, groups={list(self.groups)})"
 
     def group(self, name: str) -> JointGroup:
-        """The joint group ``name``; an unknown name raises a ``KeyError`` that lists the groups."""
-        try:
-            return self.groups[name]
-        except KeyError:
-            raise KeyError(
+        """The joint group ``name``; an unknown name raises :class:`UnknownNameError` listing the groups."""
+        if name not in self.groups:
+            raise UnknownNameError(
                 f"robot {self.name!r} has no joint group {name!r}; groups: {', '.join(self.groups)}"
-            ) from None
+            )
+        return self.groups[name]
+
+    def arm(self, name: str | None = None) -> RobotArm:
+        """The arm ``name`` (None: the first, the one that works alone); an unknown name raises an
+        :class:`UnknownNameError` listing the arms."""
+        if not self.arms:
+            raise InputError(f"robot {self.name!r}: its description has no arms ({self.description.file})")
+        if name is None:
+            return next(iter(self.arms.values()))
+        if name not in self.arms:
+            raise UnknownNameError(f"robot {self.name!r} has no arm {name!r}; arms: {', '.join(self.arms)}")
+        return self.arms[name]
 
     def make_data(self, keyframe: str | None = None) -> mujoco.MjData:
         """A new ``MjData`` reset to ``keyframe`` (default: the description's) and forwarded."""
@@ -109,7 +138,7 @@ class Robot:
     def _compile_group(self, name: str) -> JointGroup:
         spec = self.description.groups[name]
         model = self.model
-        where = f"{self.description.model_file.parent / DESCRIPTION_FILE}: group {name!r}"
+        where = f"{self.description.file}: group {name!r}"
 
         joint_ids = []
         for joint in spec.joints:
@@ -151,6 +180,38 @@ class Robot:
             jerk=_frozen([limit.jerk for limit in limits]),
         )
 
+    def _compile_arm(self, name: str) -> RobotArm:
+        spec, model = self.description.arms[name], self.model
+        where = f"{self.description.file}.arms.{name}"
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, spec.tcp.site) < 0:
+            raise DescriptionError(f"{where}.tcp: the model has no site {spec.tcp.site!r}")
+        gripper = None
+        if spec.gripper is not None:
+            description = spec.gripper
+            actuator = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, description.actuator)
+            if actuator < 0:
+                raise DescriptionError(
+                    f"{where}.gripper.actuator: the model has no actuator {description.actuator!r}"
+                )
+            pads = []
+            for side in description.pads:
+                ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom) for geom in side]
+                if min(ids) < 0:
+                    missing = side[ids.index(min(ids))]
+                    raise DescriptionError(f"{where}.gripper.pads: the model has no geom {missing!r}")
+                pads.append(_frozen(ids, int))
+            order = np.argsort(description.opening)
+            gripper = Gripper(
+                group=description.group,
+                actuator=actuator,
+                opening=_frozen(np.asarray(description.opening)[order]),
+                command=_frozen(np.asarray(description.command)[order]),
+                open=description.open,
+                pads=(pads[0], pads[1]),
+                limits=description.limits,
+            )
+        return RobotArm(name, spec.groups, spec.tcp.site, gripper)
+
     def _actuated_dofs(self, actuator: int) -> set[int]:
         """The DOFs an actuator's transmission acts on (joint or fixed tendon)."""
         model = self.model
@@ -176,19 +237,30 @@ def load(name: str) -> Robot:
     """Loads a shipped robot by name (see :func:`available`), or a robot folder given as a path.
 
     Raises:
-        ValueError: unknown name (the message lists the available robots), or a malformed description or
-            model (the message names the file).
+        InputError: unknown name (the message lists the available robots), or a model that does not load.
+        DescriptionError: a malformed description, or one that does not fit the model (the message names the
+            file and field).
     """
+    description = describe(name)
+    return Robot(description, compile_spec(build_spec(description), description))
+
+
+def describe(name: str) -> RobotDescription:
+    """The description of a shipped robot (by name) or of a robot folder (a path), read and checked."""
     folder = Path(name)
     if not (folder / DESCRIPTION_FILE).is_file():
         if name not in available():
-            raise InputError(f"unknown robot {name!r}; available: {', '.join(available())}")
+            raise UnknownNameError(f"unknown robot {name!r}; available: {', '.join(available())}")
         folder = ROBOTS_DIR / name
-    description = read_description(folder / DESCRIPTION_FILE)
+    return read_description(folder / DESCRIPTION_FILE)
+
+
+def compile_spec(spec: mujoco.MjSpec, description: RobotDescription) -> mujoco.MjModel:
+    """Compiles an assembled model (with whatever a world added); errors name the description."""
     try:
-        model = mujoco.MjModel.from_xml_path(str(description.model_file))
+        model = spec.compile()
     except ValueError as error:
-        raise InputError(f"{description.model_file}: the model does not compile: {error}") from None
+        raise InputError(f"{description.file}: the robot's model does not compile: {error}") from None
     if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, description.keyframe) < 0:
-        raise DescriptionError(f"{description.model_file}: no keyframe {description.keyframe!r}")
-    return Robot(description, model)
+        raise DescriptionError(f"{description.file}: the model has no keyframe {description.keyframe!r}")
+    return model

@@ -1,7 +1,8 @@
 """The kinematic model of the joints an executor drives: what planning and execution both ask about.
 
-An :class:`Arm` is a set of joint groups of a :class:`~besman.sim.world.World`'s robot (AILA's waist and
-right arm, say) with one end-effector site: their joints, ranges and motion limits, and the queries on
+An :class:`Arm` is an arm of a :class:`~besman.sim.world.World`'s robot as its description defines it (AILA's
+waist and right arm with the right hand's tool frame and gripper, say; or only some of its joint groups):
+their joints, ranges and motion limits, the tool-centre point site, the gripper, and the queries on
 configurations of those joints with everything else as it stands in the world - forward kinematics,
 inverse kinematics and collisions. Queries run in a scratch ``MjData`` of their own, so planning never
 touches the simulation.
@@ -19,20 +20,25 @@ from besman.sim.world import World
 
 
 class Arm:
-    """Joints, limits and kinematic queries of ``groups`` of a world's robot; see the module documentation.
+    """Joints, limits and kinematic queries of an arm of a world's robot; see the module documentation.
 
     Attributes:
+        robot_arm: the description's arm (its name, groups, tool-centre point and gripper).
+        groups: the joint groups moved (the arm's, unless given).
         joints: joint names, in the groups' order (every array below follows it).
         qpos_indices, dof_indices, actuator_indices: where the joints sit in qpos, qvel and ctrl.
         lower, upper: joint ranges (rad or m).
         max_velocity, max_acceleration, max_jerk: motion limits from the robot description.
-        site: the end-effector site (the last group's).
+        site: the tool-centre point site.
+        gripper: the arm's gripper (:class:`~besman.robots.Gripper`), None without one.
     """
 
-    def __init__(self, world: World, groups: Sequence[str] = ("waist", "right_arm")) -> None:
+    def __init__(self, world: World, arm: str | None = None, groups: Sequence[str] | None = None) -> None:
         self.world = world
-        self.groups = tuple(groups)
         robot = world.robot
+        self.robot_arm = robot.arm(arm)
+        self.groups = tuple(self.robot_arm.groups if groups is None else groups)
+        self.gripper = self.robot_arm.gripper
         members = [robot.group(name) for name in self.groups]
         self.joints = tuple(j for g in members for j in g.joints)
         self.qpos_indices = np.concatenate([g.qpos_indices for g in members])
@@ -43,7 +49,7 @@ class Arm:
         self.max_velocity = np.concatenate([g.velocity for g in members])
         self.max_acceleration = np.concatenate([g.acceleration for g in members])
         self.max_jerk = np.concatenate([g.jerk for g in members])
-        self.site = members[-1].site
+        self.site = self.robot_arm.tcp
         model = world.model
         self._site_id = robots.kinematics.site_id(model, self.site)
         self._scratch = mujoco.MjData(model)

@@ -29,18 +29,11 @@ import numpy as np
 from besman.sim.arm import Arm
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
 from besman.sim.executor import Executor
-from besman.sim.manipulation import (
-    DEFAULT_PLAN,
-    OPEN,
-    PickPlacePlan,
-    PlanningError,
-    plan_pick,
-    plan_place,
-)
+from besman.sim.manipulation import DEFAULT_PLAN, PickPlacePlan, PlanningError, plan_pick, plan_place
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
 from besman.sim.pick_place import LIFT_HEIGHT, PICK_PLACE_BOUNDS, settle_and_measure
 from besman.sim.primitives import shaped
-from besman.sim.world import DEFAULT_BOX, TABLE, World, tabletop_world
+from besman.sim.world import DEFAULT_BOX, World, tabletop_world
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
 from besman.skills.tasks import TaskBounds
@@ -157,7 +150,7 @@ def _motion(step: MovementPrimitive | str) -> Motion:
     if step == "grasp":
         return GripperMotion("grasp", opening=0.0, expect_grasp=True, grasp_object=DEFAULT_BOX.name)
     if step == "release":
-        return GripperMotion("release", opening=OPEN)
+        return GripperMotion("release", opening=None)
     return FollowPrimitive(step)
 
 
@@ -175,7 +168,7 @@ def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -
     object_xy, place_xy = full[:2], full[2:]
     item = DEFAULT_BOX
     world.reset()
-    world.place_on(item.name, TABLE.name, *object_xy)
+    world.place_on(item.name, "table", *object_xy)
     executor = Executor(world)
     home = executor.position.copy()
     settings = executor.reference_settings
@@ -230,7 +223,7 @@ def rollout(world: World, start: BlockStart, shape: MovementPrimitive) -> BlockO
         return BlockOutcome(False, f"{start.block}: {motion.message}", **measures)
     if start.block == "carry" and not executor.hand.holds(item.name):
         return BlockOutcome(False, "carry: the box slipped out of the hand", **measures)
-    resting = TABLE.height + item.half_height
+    resting = world.surface("table").height + item.half_height
     for step in start.after:
         motion = executor.run(_motion(step), timeout=TIMEOUT)
         if motion.status is not MotionStatus.SUCCEEDED:

@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from besman.sim.executor import Executor
-from besman.sim.world import TABLE
 
 
 @dataclass
@@ -35,6 +34,6 @@ class TakeFromHand:
             self.object
         ):
             return False
-        executor.world.place_on(self.object, TABLE.name, *self.where)
+        executor.world.place_on(self.object, "table", *self.where)
         self.done = True
         return True

@@ -1,10 +1,11 @@
 """Executing motions on a simulated robot: every command passes through Ruckig, every cycle is checked.
 
-An :class:`Executor` drives an :class:`~besman.sim.arm.Arm` (e.g. AILA's waist and right arm) and a gripper
-of a :class:`~besman.sim.world.World`. Each control cycle (500 Hz by default) the current
-:mod:`motion <besman.sim.motions>` advances the commanded joint state through a Ruckig stream
-(:mod:`besman.sim.streaming`), the commanded positions go to the position actuators, the physics runs until
-the next cycle, and the motion judges the outcome. Faults (MuJoCo warnings, NaN, joints leaving their
+An :class:`Executor` drives the arms of a :class:`~besman.sim.world.World`'s robot that its description
+defines (e.g. AILA's waist and right arm with the right gripper; a UR5e with its Robotiq), each an
+:class:`~besman.sim.arm.Arm` and a gripper with Ruckig streams of their own. Each control cycle (500 Hz by
+default) the current :mod:`motion <besman.sim.motions>` advances the commanded joint state through a Ruckig
+stream (:mod:`besman.sim.streaming`), the commanded positions go to the position actuators, the physics runs
+until the next cycle, and the motion judges the outcome. Faults (MuJoCo warnings, NaN, joints leaving their
 ranges; :mod:`besman.sim.faults`) end the motion as FAILED with a reason. Every cycle's commanded state is
 logged so that the limits can be checked afterwards (:func:`limit_violations`).
 """
@@ -25,7 +26,7 @@ from besman.sim.motions import Chunk, Motion, MotionStatus, Stop
 from besman.sim.references import ReferenceSettings
 from besman.sim.streaming import WORKING, JerkLimitedStream
 from besman.sim.world import World
-from besman.skills.errors import InputError
+from besman.skills.errors import InputError, UnknownNameError
 
 
 @dataclass(frozen=True)
@@ -68,13 +69,26 @@ class Executor:
     def __init__(
         self,
         world: World,
-        groups: Sequence[str] = ("waist", "right_arm"),
-        gripper: str | None = "right_gripper",
+        arms: str | Sequence[str] | None = None,
         config: ExecutorConfig = ExecutorConfig(),
-        name: str = "right",
+        *,
+        groups: Sequence[str] | None = None,
     ) -> None:
-        self.world, self.config, self.name = world, config, name
-        self.companions: dict[str, Executor] = {}  # other arms run in lockstep (add_arm)
+        """Drives ``arms`` of the world's robot (names from its description; default: its first arm, alone).
+        The first arm is this executor's; the others run in lockstep with it (:meth:`arm_executor`). With
+        several arms, the groups they share (AILA's waist) are held where they are; ``groups`` overrides the
+        joint groups this executor's arm moves."""
+        names = [arms] if isinstance(arms, str) else list(arms or [world.robot.arm().name])
+        if len(set(names)) != len(names):
+            raise InputError(f"arms repeat: {', '.join(names)}")
+        robot_arms = [world.robot.arm(name) for name in names]
+        shared = {
+            group
+            for arm in robot_arms
+            for group in arm.groups
+            if sum(group in a.groups for a in robot_arms) > 1
+        }
+        self.world, self.config, self.name = world, config, names[0]
         steps = config.control_period / world.model.opt.timestep
         if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
             raise InputError(
@@ -82,28 +96,33 @@ class Executor:
                 f"{world.model.opt.timestep}"
             )
         self.substeps = round(steps)
-        self.arm = Arm(world, groups)
+        own = [group for group in robot_arms[0].groups if group not in shared] if groups is None else groups
+        self.arm = Arm(world, names[0], own)
         arm = self.arm
         self.stream = JerkLimitedStream(
             arm.lower, arm.upper, arm.max_velocity, arm.max_acceleration, arm.max_jerk, config.control_period
         )
-        group = world.robot.group(gripper) if gripper else None
-        self.hand = Hand(world, group) if group is not None else None
-        # The fingers are coupled and driven by one actuator: one commanded opening for both.
+        # Seconds of commanded velocity added to each position command (see the robot description).
+        self._lead = np.zeros(arm.dofs)
+        if world.robot.description.velocity_feedforward:
+            model, actuators = world.model, arm.actuator_indices
+            self._lead = -model.actuator_biasprm[actuators, 2] / model.actuator_gainprm[actuators, 0]
+        gripper = arm.gripper
+        self.hand = Hand(world, arm.robot_arm) if gripper is not None else None
+        # One commanded opening (m per finger) for the gripper, sent as its actuator's command.
         self.gripper_stream = (
             JerkLimitedStream(
-                group.lower[:1],
-                group.upper[:1],
-                group.velocity[:1],
-                group.acceleration[:1],
-                group.jerk[:1],
+                [gripper.lower],
+                [gripper.upper],
+                [gripper.limits.velocity],
+                [gripper.limits.acceleration],
+                [gripper.limits.jerk],
                 config.control_period,
             )
-            if group is not None
+            if gripper is not None
             else None
         )
-        self._gripper_actuator = int(group.actuator_indices[0]) if group is not None else None
-        self._finger_dofs = group.dof_indices if group is not None else None
+        self._finger_dofs = self.hand.fingers.dof_indices if gripper is not None else None
         self.reference_settings = ReferenceSettings(
             period=config.control_period,
             ik_tolerances=(config.ik_position_tolerance, config.ik_orientation_tolerance),
@@ -113,6 +132,10 @@ class Executor:
         self.monitor = FaultMonitor(world.model)
         self.log = CommandLog(self.arm.dofs)
         self.motion: Motion | None = None
+        self.companions: dict[str, Executor] = {  # the other arms, run in lockstep
+            arm.name: Executor(world, arm.name, config, groups=[g for g in arm.groups if g not in shared])
+            for arm in robot_arms[1:]
+        }
         self.sync()
 
     # -- state ---------------------------------------------------------------------------------------------
@@ -123,7 +146,8 @@ class Executor:
         self.stream.reset(self.arm.measured())
         data.ctrl[self.arm.actuator_indices] = self.stream.position
         if self.gripper_stream is not None:
-            self.gripper_stream.reset([data.ctrl[self._gripper_actuator]])
+            gripper = self.arm.gripper
+            self.gripper_stream.reset([gripper.opening_for(data.ctrl[gripper.actuator])])
         self.monitor.reset(data)
         self.motion = None
 
@@ -146,7 +170,7 @@ class Executor:
 
     @property
     def gripper_opening(self) -> float | None:
-        """The commanded finger opening (m), None without a gripper."""
+        """The commanded opening (m per finger), None without a gripper."""
         return None if self.gripper_stream is None else float(self.gripper_stream.position[0])
 
     def measured_position(self) -> np.ndarray:
@@ -181,7 +205,8 @@ class Executor:
 
     def advance(self, cycles: int) -> MotionStatus:
         """Runs ``cycles`` control cycles (e.g. those between two ticks of a behaviour tree) as one chunk
-        and returns the motion's status; the arms added by :meth:`add_arm` run the same cycles, in lockstep.
+        and returns the motion's status; the other arms (:meth:`arm_executor`) run the same cycles in
+        lockstep.
 
         Each arm's motion computes its commands for the whole chunk first (they never depend on
         measurements), then the physics steps through them back to back (MuJoCo's data stays warm in the
@@ -197,20 +222,9 @@ class Executor:
             member._judge(plan, measured, fingers)
         return self.motion.status if self.motion is not None else MotionStatus.SUCCEEDED
 
-    def add_arm(self, name: str, groups: Sequence[str], gripper: str | None = None) -> Executor:
-        """Another arm of the same robot (``groups``, ``gripper``), with its own Ruckig streams, motions and
-        command log, run in lockstep with this executor: its control cycles are this one's (:meth:`advance`
-        commands both, steps the physics once for both, then judges both), so the two arms move in
-        parallel. Leaves reach it by ``name`` (:meth:`arm_executor`)."""
-        if name in self.arms:
-            raise InputError(f"arm {name!r} is already driven by this executor")
-        other = Executor(self.world, groups, gripper, self.config, name=name)
-        self.companions[name] = other
-        return other
-
     @property
     def arms(self) -> dict[str, Executor]:
-        """This executor and the arms added to it, by name."""
+        """This executor and the other arms it runs in lockstep, by name."""
         return {self.name: self, **self.companions}
 
     def arm_executor(self, name: str | None) -> Executor:
@@ -218,7 +232,7 @@ class Executor:
         if name is None or name == self.name:
             return self
         if name not in self.companions:
-            raise KeyError(f"no arm {name!r} in this run; arms: {', '.join(self.arms)}")
+            raise UnknownNameError(f"no arm {name!r} in this run; arms: {', '.join(self.arms)}")
         return self.companions[name]
 
     def tick(self) -> MotionStatus:
@@ -296,13 +310,13 @@ def _simulate(
     model, data, step = world.model, world.data, mujoco.mj_step
     ctrl, qpos, qvel = data.ctrl, data.qpos, data.qvel
     rows = len(plans[0].states)
-    # Per arm: its actuators and commanded positions, its gripper actuator and commanded openings (or None).
+    # Per arm: its actuators and commanded positions, its gripper actuator and commands (or None).
     drives = [
         (
             member.arm.actuator_indices,
-            plan.states[:, 0],
-            member._gripper_actuator,
-            None if plan.gripper is None else plan.gripper[:, 0, 0],
+            plan.states[:, 0] + member._lead * plan.states[:, 1],
+            None if plan.gripper is None else member.arm.gripper.actuator,
+            None if plan.gripper is None else member.arm.gripper.command_for(plan.gripper[:, 0, 0]),
         )
         for member, plan in zip(members, plans, strict=True)
     ]
@@ -314,10 +328,10 @@ def _simulate(
     joints = [member.arm.qpos_indices for member in members]
     times, cycle_steps = np.empty(rows), range(substeps)
     for row in range(rows):
-        for actuators, positions, gripper_actuator, openings in drives:
+        for actuators, positions, gripper_actuator, commands in drives:
             ctrl[actuators] = positions[row]
-            if openings is not None:
-                ctrl[gripper_actuator] = openings[row]
+            if commands is not None:
+                ctrl[gripper_actuator] = commands[row]
         for _ in cycle_steps:
             step(model, data)
         times[row] = data.time
@@ -325,8 +339,9 @@ def _simulate(
             measured[index][row] = qpos[member_joints]
             if fingers[index] is not None:
                 fingers[index][row] = qvel[members[index]._finger_dofs]
-    for member, plan, (_, _, _, openings) in zip(members, plans, drives, strict=True):
-        member.log.append(times, plan.states, np.zeros(rows) if openings is None else openings)
+    for member, plan in zip(members, plans, strict=True):
+        openings = np.zeros(rows) if plan.gripper is None else plan.gripper[:, 0, 0]
+        member.log.append(times, plan.states, openings)
     return list(zip(measured, fingers, strict=True))
 
 

@@ -1,8 +1,9 @@
 """Grasp sensing: whether a gripper's finger pads touch an object and the object moves with the hand.
 
-A grasp is judged from the simulation as a robot with touch sensing would: both finger pads (the collision
-geoms of the finger bodies) in contact with the object, and the object's linear velocity within 2 cm/s of
-the hand's at the object's centre, so that an object merely brushed or pushed does not count as held.
+A grasp is judged from the simulation as a robot with touch sensing would: both sides' finger pads (the pad
+geoms the robot's description names) in contact with the object, and the object's linear velocity within
+2 cm/s of the hand's at the object's centre, so that an object merely brushed or pushed does not count as
+held.
 """
 
 from __future__ import annotations
@@ -10,21 +11,20 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from besman.robots import JointGroup
+from besman.robots import RobotArm
 from besman.sim.world import World
 
 HELD_SPEED = 0.02  # m/s: largest object-vs-hand speed of a held object
 
 
 class Hand:
-    """The finger pads and hand site of ``gripper`` (a joint group of ``world``'s robot)."""
+    """The finger pads and tool site of ``arm`` (an arm with a gripper of ``world``'s robot)."""
 
-    def __init__(self, world: World, gripper: JointGroup) -> None:
-        self.world, self.gripper = world, gripper
-        model = world.model
-        bodies = [model.jnt_bodyid[model.joint(name).id] for name in gripper.joints]
-        self.pads = tuple(int(np.flatnonzero(model.geom_bodyid == body)[0]) for body in bodies)
-        self.site = model.site(gripper.site).id
+    def __init__(self, world: World, arm: RobotArm) -> None:
+        self.world, self.gripper = world, arm.gripper
+        self.fingers = world.robot.group(self.gripper.group)  # the fingers' joints
+        self.pads = self.gripper.pads  # geom ids, per side
+        self.site = world.model.site(arm.tcp).id
         self._velocity = np.empty(6)
         self._bodies: dict[str, int] = {}  # body ids by name (a name lookup costs more than the check)
 
@@ -34,14 +34,13 @@ class Hand:
         return self._bodies[name]
 
     def touching(self, name: str) -> tuple[bool, bool]:
-        """Whether each finger pad touches the object ``name``."""
+        """Whether each side's pads touch the object ``name``."""
         geoms = self.world.data.contact.geom  # (ncon, 2), one vectorised pass over the contacts
         on_target = self.world.model.geom_bodyid[geoms] == self._body(name)
         # A pad touches the object where it is one side of a contact and the object's body the other.
-        first = (geoms[:, 0, None] == self.pads) & on_target[:, 1, None]
-        second = (geoms[:, 1, None] == self.pads) & on_target[:, 0, None]
-        touch = (first | second).any(axis=0)
-        return bool(touch[0]), bool(touch[1])
+        touching_geoms = np.r_[geoms[on_target[:, 1], 0], geoms[on_target[:, 0], 1]]
+        first, second = (bool(np.isin(side, touching_geoms).any()) for side in self.pads)
+        return first, second
 
     def holds(self, name: str | None) -> bool:
         """Both pads touch the object and it moves with the hand."""

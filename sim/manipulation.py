@@ -19,7 +19,7 @@ import numpy as np
 from besman.sim.arm import Arm
 from besman.sim.primitives import point_to_point, shaped, straight_line, top_down
 from besman.sim.references import DEFAULT_SETTINGS, ReferenceSettings, at_rest, joint_reference
-from besman.sim.world import SHELF, TABLE, GraspableObject
+from besman.sim.world import GraspableObject, World
 from besman.skills import MovementPrimitive, Trajectory
 from besman.skills.errors import BesmanError, InputError
 from besman.skills.validation import finite_array
@@ -29,7 +29,6 @@ class PlanningError(BesmanError):
     """No motion satisfies the plan's conditions; the message says which."""
 
 
-OPEN = 0.045  # finger opening (m per finger) before grasping and for releasing: a 9 cm aperture
 # The fingers close across a pair of the box's faces (yaw 0 or 90 deg, up to 15 deg off); the hand's own
 # symmetry makes yaws 180 deg apart the same grasp.
 GRASP_YAWS = np.radians([0.0, 15.0, -15.0, -90.0, -75.0, 75.0])
@@ -37,13 +36,14 @@ LIFT = 0.06  # m a held object is lifted at least (another hand lets go of it be
 FINGER_CLEARANCE = 0.005  # m the open fingers keep from the object on each side as they descend around it
 
 
-def grasp_yaws(item: GraspableObject) -> np.ndarray:
-    """The yaws of :data:`GRASP_YAWS` at which the open fingers fit around ``item`` (standing axis-aligned):
-    its width along the closing direction plus the clearance on both sides within the 2 x :data:`OPEN`
-    aperture. A cube of 6 cm allows them all; a bar only the yaws across it."""
+def grasp_yaws(item: GraspableObject, arm: Arm) -> np.ndarray:
+    """The yaws of :data:`GRASP_YAWS` at which the arm's open fingers fit around ``item`` (standing
+    axis-aligned): its width along the closing direction plus the clearance on both sides within the
+    aperture (twice the gripper's grasping opening). A cube of 6 cm allows them all; a bar only the yaws
+    across it."""
     half_x, half_y = item.size[0], item.size[1] if item.shape == "box" else item.size[0]
     width = 2 * (half_x * np.abs(np.cos(GRASP_YAWS)) + half_y * np.abs(np.sin(GRASP_YAWS)))
-    return GRASP_YAWS[width + 2 * FINGER_CLEARANCE <= 2 * OPEN]
+    return GRASP_YAWS[width + 2 * FINGER_CLEARANCE <= 2 * arm.gripper.open]
 
 
 @dataclass(frozen=True)
@@ -228,11 +228,12 @@ class PlaceMotions:
     retreat: MovementPrimitive
 
 
-def heights(item: GraspableObject, plan: PickPlacePlan) -> tuple[float, float, float]:
-    """Heights of the grasp point when grasping on the table, carrying and placing on the shelf."""
-    grasp = TABLE.height + item.half_height + plan.grasp_height
-    carry = SHELF.height + plan.clearance + item.half_height + plan.grasp_height
-    place = SHELF.height + plan.release_height + item.half_height + plan.grasp_height
+def heights(world: World, item: GraspableObject, plan: PickPlacePlan) -> tuple[float, float, float]:
+    """Heights of the grasp point when grasping on the world's table, carrying and placing on its shelf."""
+    table, shelf = world.surface("table").height, world.surface("shelf").height
+    grasp = table + item.half_height + plan.grasp_height
+    carry = shelf + plan.clearance + item.half_height + plan.grasp_height
+    place = shelf + plan.release_height + item.half_height + plan.grasp_height
     return grasp, carry, place
 
 
@@ -252,7 +253,7 @@ def plan_pick(
     (:func:`~besman.sim.primitives.shaped`)."""
     where = np.asarray(object_xy, dtype=float)
     object_xy = where[:2]
-    grasp_z, carry_z, _ = heights(item, plan)
+    grasp_z, carry_z, _ = heights(arm.world, item, plan)
     if len(where) == 3:
         grasp_z = where[2] + plan.grasp_height
         carry_z = max(carry_z, grasp_z + LIFT)
@@ -268,7 +269,7 @@ def plan_pick(
         plan.descend_time,
         allowed=(item.name,),
         settings=settings,
-        yaws=grasp_yaws(item),
+        yaws=grasp_yaws(item, arm),
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down grasp of the object")
@@ -297,8 +298,8 @@ def plan_place(
     off-centre (a bar taken at one end): the object, not the hand, goes to ``place_xy``, and since the
     object turns with the hand, any top-down yaw will do (the offset turned with it)."""
     place_xy = np.asarray(place_xy, dtype=float)
-    _, carry_z, place_z = heights(item, plan)
-    shift, yaws = None, grasp_yaws(item)
+    _, carry_z, place_z = heights(arm.world, item, plan)
+    shift, yaws = None, grasp_yaws(item, arm)
     if held is not None:
         held = np.asarray(held, dtype=float)
         closing = arm.site_pose(start).rotation[:, 1]  # the fingers' closing axis (see top_down)
@@ -330,7 +331,7 @@ def plan_place(
     # The joint-space transport cannot run into a joint limit, but its hand path must stay over the shelf.
     reference = joint_reference(arm, transport, at_rest(start), settings)
     lowest = float(site_path(arm, reference, 40)[:, 2].min())
-    if lowest - item.half_height - plan.grasp_height < SHELF.height + 0.01:
+    if lowest - item.half_height - plan.grasp_height < arm.world.surface("shelf").height + 0.01:
         raise PlanningError(f"the transport would sweep the box {lowest:.3f} m low over the shelf")
     return PlaceMotions(transport, *leg.primitives)
 

@@ -265,21 +265,24 @@ class MoveTo(Motion):
 
 @dataclass
 class GripperMotion(Motion):
-    """Drive the gripper to ``opening`` (m per finger) while the arm holds still; with ``expect_grasp`` it
-    fails unless it ends up holding ``grasp_object``."""
+    """Drive the gripper to ``opening`` (m per finger; None: the gripper's own opening for grasping and
+    releasing; 0 closes it) while the arm holds still; with ``expect_grasp`` it fails unless it ends up
+    holding ``grasp_object``."""
 
-    opening: float = 0.0
+    opening: float | None = 0.0
     expect_grasp: bool = False
     grasp_object: str | None = None
     _target: tuple = field(default=(), init=False, repr=False)
+    _goal: float = field(default=0.0, init=False, repr=False)
     moves_gripper: ClassVar[bool] = True
 
     def begin(self, executor: Executor) -> None:
         if executor.hand is None:
             raise InputError("the executor has no gripper")
-        self._target = tuple(
-            a.tolist() for a in executor.gripper_stream.feasible([self.opening], [0.0], [0.0])
-        )
+        gripper = executor.arm.gripper
+        wanted = gripper.open if self.opening is None else self.opening
+        self._goal = float(np.clip(wanted, gripper.lower, gripper.upper))
+        self._target = tuple(a.tolist() for a in executor.gripper_stream.feasible([self._goal], [0.0], [0.0]))
 
     def command(self, executor: Executor) -> ruckig.Result:
         result = executor.stream.brake()  # the arm holds still (braking first if it was moving)
@@ -289,8 +292,8 @@ class GripperMotion(Motion):
     def judge(self, executor: Executor, chunk: Chunk) -> None:
         blocked = self.blocked_at(executor, chunk)
         opening, speed = chunk.gripper[:, 0], chunk.gripper[:, 1]
-        closed_on_limit = self.opening <= executor.gripper_stream.lower[0] + 1e-9
-        commanded_done = (np.abs(opening - self.opening) < 1e-9) | (closed_on_limit & (np.abs(speed) < 1e-9))
+        closed_on_limit = self._goal <= executor.gripper_stream.lower[0] + 1e-9
+        commanded_done = (np.abs(opening - self._goal) < 1e-9) | (closed_on_limit & (np.abs(speed) < 1e-9))
         still = commanded_done & (chunk.finger_speed <= 1e-3)
         for row in range(len(chunk) if blocked is None else blocked):
             self.settled = self.settled + 1 if still[row] else 0

@@ -1,7 +1,9 @@
-"""AILA picks a box from the table and places it on the shelf with its right arm (and waist).
+"""A robot picks a box from the table and places it on the shelf with its first arm (AILA: the right arm
+and the waist).
 
 tau = (object x, object y, place x, place y): where the box stands on the table and where it must end up
-on the shelf board, inside :data:`PICK_PLACE_BOUNDS`:
+on the shelf board, inside :func:`pick_place_bounds` - the object and place areas of the robot's tabletop
+layout. AILA's (:data:`PICK_PLACE_BOUNDS`):
 
 - object box: x in [0.45, 0.62] m, y in [-0.15, 0.00] m on the table (top 0.78 m), in front of the robot;
 - place box: x in [0.45, 0.62] m, y in [-0.48, -0.34] m on the shelf board (top 0.90 m) to its right.
@@ -29,17 +31,31 @@ from dataclasses import dataclass, fields
 import mujoco
 import numpy as np
 
+import besman.robots as robots
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
 from besman.sim.executor import Executor, limit_violations
-from besman.sim.manipulation import OPEN, PickPlacePlan, PlanningError, plan_pick, plan_place
+from besman.sim.manipulation import PickPlacePlan, PlanningError, plan_pick, plan_place
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
-from besman.sim.world import DEFAULT_BOX, SHELF, TABLE, GraspableObject, World, tabletop_world
+from besman.sim.world import DEFAULT_BOX, GraspableObject, World, tabletop_world
+from besman.skills.errors import InputError
 from besman.skills.tasks import TaskBounds
 from besman.skills.validation import finite_array
 
-PICK_PLACE_BOUNDS = TaskBounds(
-    ("object_x", "object_y", "place_x", "place_y"), (0.45, -0.15, 0.45, -0.48), (0.62, 0.00, 0.62, -0.34)
-)
+
+def pick_place_bounds(robot: str = "aila") -> TaskBounds:
+    """The box of tau for ``robot``: its tabletop layout's object area (table) and place area (shelf)."""
+    layout = robots.describe(robot).tabletop
+    if layout is None:
+        raise InputError(f"robot {robot!r} has no tabletop layout: it cannot pick and place")
+    (ox, oy), (px, py) = layout.objects, layout.places
+    return TaskBounds(
+        ("object_x", "object_y", "place_x", "place_y"),
+        (ox[0], oy[0], px[0], py[0]),
+        (ox[1], oy[1], px[1], py[1]),
+    )
+
+
+PICK_PLACE_BOUNDS = pick_place_bounds("aila")
 FAILURE_REWARD = -1.0
 LIFT_HEIGHT = 0.05  # m the box must rise above its resting height for a grasp to count
 
@@ -64,6 +80,7 @@ class PickPlaceConfig:
     """Everything that defines the task; ``build()`` makes it (also on Ray workers)."""
 
     item: GraspableObject = DEFAULT_BOX
+    robot: str = "aila"
 
     def build(self) -> PickPlaceTask:
         return PickPlaceTask(self)
@@ -72,11 +89,10 @@ class PickPlaceConfig:
 class PickPlaceTask:
     """The pick-and-place task; see the module documentation."""
 
-    bounds = PICK_PLACE_BOUNDS
-
     def __init__(self, config: PickPlaceConfig = PickPlaceConfig()) -> None:
         self.config = config
-        self.world = tabletop_world((config.item,))
+        self.bounds = pick_place_bounds(config.robot)
+        self.world = tabletop_world((config.item,), config.robot)
 
     @staticmethod
     def default_theta() -> np.ndarray:
@@ -123,7 +139,7 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
     """Resets ``world``, places the box at tau's object position, plans and runs the scripted sequence."""
     world.reset()
     object_xy, place_xy = tau[:2], tau[2:]
-    world.place_on(item.name, TABLE.name, *object_xy)
+    world.place_on(item.name, "table", *object_xy)
     executor = Executor(world)
     try:
         settings = executor.reference_settings
@@ -132,14 +148,14 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
     except PlanningError as error:
         return _failure(world, "plan", str(error))
     steps = [
-        GripperMotion("open", opening=OPEN),
+        GripperMotion("open", opening=None),
         pick.approach,
         pick.descend,
         GripperMotion("grasp", opening=0.0, expect_grasp=True, grasp_object=item.name),
         pick.lift,
         put.transport,
         put.place,
-        GripperMotion("release", opening=OPEN),
+        GripperMotion("release", opening=None),
         put.retreat,
     ]
     monitor = _BoxMonitor(world, item.name, executor)
@@ -152,7 +168,7 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
         if motion.name in ("lift", "transport", "place") and not executor.hand.holds(item.name):
             return _failure(world, motion.name, "the box slipped out of the hand", monitor)
         if motion.name == "lift":
-            if monitor.highest < TABLE.height + item.half_height + LIFT_HEIGHT:
+            if monitor.highest < world.surface("table").height + item.half_height + LIFT_HEIGHT:
                 return _failure(world, motion.name, "the box was not lifted", monitor)
             monitor.grasped = True
     placed = settle_and_measure(world, item, place_xy, monitor.update)
@@ -197,7 +213,7 @@ def settle_and_measure(
     pose = world.object_pose(item.name)
     error = float(np.linalg.norm(pose.position[:2] - np.asarray(place_xy, dtype=float)))
     tilt = math.degrees(math.acos(min(1.0, abs(pose.rotation[2, 2]))))
-    on_shelf = abs(pose.position[2] - (SHELF.height + item.half_height)) < 0.01
+    on_shelf = abs(pose.position[2] - (world.surface("shelf").height + item.half_height)) < 0.01
     success = bool(error <= PLACE_TOLERANCE and tilt < 10.0 and on_shelf)
     message = (
         "placed"

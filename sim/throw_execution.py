@@ -46,10 +46,10 @@ class ThrowInFlight:
 
 
 class ThrowingExecutor(Executor):
-    """The executor of the PA-10 (its ``arm`` group, no gripper) in ``task``'s world, which also throws."""
+    """The executor of the PA-10 (its one arm, no gripper) in ``task``'s world, which also throws."""
 
     def __init__(self, task: ThrowingTask) -> None:
-        super().__init__(task.world, ("arm",), None, name="arm")
+        super().__init__(task.world)
         self.task = task
         self.throw: ThrowInFlight | None = None
         model = task.model

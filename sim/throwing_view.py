@@ -53,7 +53,7 @@ class ThrowingView:
         box = template.box
         target = (np.asarray(box.low) + np.asarray(box.high)) / 2 if target is None else target
         self.target = tuple(box.check(target)[0])  # outside the box: named and refused
-        self.arm = Arm(self.task.world, groups=("arm",))
+        self.arm = Arm(self.task.world)
         self.viewer = Viewer(self.task.model, **{"camera_distance": 10.0, **(viewer_options or {})})
         gui = self.viewer.server.gui
         with gui.add_folder("Throw"):

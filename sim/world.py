@@ -4,8 +4,9 @@ A :class:`World` owns one compiled model, one ``MjData`` and the robot's descrip
 composed model (so group indices are right even after objects are added). It resets to a keyframe, and
 reads and places objects by name. Two worlds are provided:
 
-- :func:`tabletop_world` - AILA in front of a table (top 0.78 m) with a raised shelf board (top 0.90 m) on
-  its right side, and graspable objects (a 6 cm wooden-like box of 0.2 kg by default).
+- :func:`tabletop_world` - a robot (AILA by default) in front of a table with a raised shelf board on its
+  right side, both where the robot's description puts them (its tabletop layout: AILA's table top at
+  0.78 m, the shelf at 0.90 m), and graspable objects (a 6 cm wooden-like box of 0.2 kg by default).
 - :func:`throwing_world` - the PA-10 on a floor, holding its ball, with a sensor of the ball's position.
 
 Objects are free bodies; their poses are (x, y, z) plus a (w, x, y, z) quaternion.
@@ -20,8 +21,9 @@ import mujoco
 import numpy as np
 
 import besman.robots as robots
-from besman.robots import Pose, Robot
-from besman.skills.errors import InputError
+from besman.robots import Pose, Robot, RobotDescription
+from besman.robots.description import Board, TabletopLayout
+from besman.skills.errors import InputError, UnknownNameError
 
 
 @dataclass(frozen=True)
@@ -64,9 +66,9 @@ class Surface:
     def contains(self, x: float, y: float, margin: float = 0.0) -> bool:
         return self.x[0] + margin <= x <= self.x[1] - margin and self.y[0] + margin <= y <= self.y[1] - margin
 
-
-TABLE = Surface("table", 0.78, (0.38, 0.98), (-0.60, 0.60))
-SHELF = Surface("shelf", 0.90, (0.38, 0.75), (-0.60, -0.28))
+    @classmethod
+    def of(cls, name: str, board: Board) -> Surface:
+        return cls(name, board.height, board.x, board.y)
 
 
 class World:
@@ -74,17 +76,19 @@ class World:
 
     def __init__(
         self,
-        robot: Robot,
+        robot: RobotDescription,
         spec: mujoco.MjSpec,
         objects: tuple[GraspableObject, ...] = (),
         surfaces: tuple[Surface, ...] = (),
+        layout: TabletopLayout | None = None,
     ) -> None:
         self.spec = spec
-        self.model = spec.compile()
+        self.model = robots.compile_spec(spec, robot)
         self.data = mujoco.MjData(self.model)
-        self.robot = Robot(robot.description, self.model)
+        self.robot = Robot(robot, self.model)
         self.objects = {item.name: item for item in objects}
         self.surfaces = {surface.name: surface for surface in surfaces}
+        self.layout = layout
         self.reset()
 
     def fork(self) -> World:
@@ -105,8 +109,18 @@ class World:
 
     def _object_joint(self, name: str) -> int:
         if name not in self.objects:
-            raise KeyError(f"no object {name!r} in the world; objects: {', '.join(self.objects) or 'none'}")
+            raise UnknownNameError(
+                f"no object {name!r} in the world; objects: {', '.join(self.objects) or 'none'}"
+            )
         return self.model.joint(name).id
+
+    def surface(self, name: str) -> Surface:
+        """The support ``name`` ("table", "shelf"); an unknown name lists the world's surfaces."""
+        if name not in self.surfaces:
+            raise UnknownNameError(
+                f"no surface {name!r} in the world; surfaces: {', '.join(self.surfaces) or 'none'}"
+            )
+        return self.surfaces[name]
 
     def object_pose(self, name: str) -> Pose:
         address = self.model.jnt_qposadr[self._object_joint(name)]
@@ -133,8 +147,8 @@ class World:
 
     def place_on(self, name: str, surface: str, x: float, y: float, yaw: float = 0.0) -> None:
         """Sets an object upright on a surface at (x, y)."""
-        support = self.surfaces[surface]
-        item = self.objects[name]
+        self._object_joint(name)  # an unknown object is named
+        support, item = self.surface(surface), self.objects[name]
         self.set_object_pose(
             name, [x, y, support.height + item.half_height], [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
         )
@@ -170,36 +184,42 @@ def _add_surface(spec: mujoco.MjSpec, surface: Surface, base: float, rgba) -> No
     )
 
 
-def tabletop_world(objects: tuple[GraspableObject, ...] = (DEFAULT_BOX,)) -> World:
-    """AILA at the origin facing +x, a table in front and a shelf board on the table's right side.
+def tabletop_world(objects: tuple[GraspableObject, ...] = (DEFAULT_BOX,), robot: str = "aila") -> World:
+    """``robot`` at the origin facing +x, a table in front and a shelf board on the table's right side, where
+    the robot's tabletop layout puts them.
 
-    Objects start on the table in front of the robot, spread along y.
+    Objects start on the table, the first at the centre of the layout's object area, the others along y.
     """
-    aila = robots.load("aila")
-    spec = mujoco.MjSpec.from_file(str(aila.folder / "scene.xml"))
+    description = robots.describe(robot)
+    layout = description.tabletop
+    if layout is None:
+        raise InputError(f"robot {description.name!r} has no tabletop layout ({description.file}: tabletop)")
+    table, shelf = Surface.of("table", layout.table), Surface.of("shelf", layout.shelf)
+    spec = robots.build_spec(description)
     table_top = 0.04  # thickness of the table plate; legs hold it up
-    _add_surface(spec, TABLE, TABLE.height - table_top, [0.55, 0.4, 0.28, 1])
-    for x in TABLE.x:
-        for y in TABLE.y:
-            inset = np.array([0.04 if x == TABLE.x[0] else -0.04, 0.04 if y == TABLE.y[0] else -0.04])
+    _add_surface(spec, table, table.height - table_top, [0.55, 0.4, 0.28, 1])
+    for x in table.x:
+        for y in table.y:
+            inset = np.array([0.04 if x == table.x[0] else -0.04, 0.04 if y == table.y[0] else -0.04])
             spec.worldbody.add_geom(
                 type=mujoco.mjtGeom.mjGEOM_BOX,
-                pos=[x + inset[0], y + inset[1], (TABLE.height - table_top) / 2],
-                size=[0.025, 0.025, (TABLE.height - table_top) / 2],
+                pos=[x + inset[0], y + inset[1], (table.height - table_top) / 2],
+                size=[0.025, 0.025, (table.height - table_top) / 2],
                 rgba=[0.45, 0.32, 0.22, 1],
                 contype=0,
                 conaffinity=0,
             )
-    _add_surface(spec, SHELF, TABLE.height, [0.35, 0.5, 0.65, 1])
+    _add_surface(spec, shelf, table.height, [0.35, 0.5, 0.65, 1])
+    start = [sum(layout.objects[0]) / 2, sum(layout.objects[1]) / 2]
     for index, item in enumerate(objects):
-        _add_object(spec, item, [0.55, -0.08 + 0.15 * index, TABLE.height + item.half_height])
-    return World(aila, spec, tuple(objects), (TABLE, SHELF))
+        _add_object(spec, item, [start[0], start[1] + 0.15 * index, table.height + item.half_height])
+    return World(description, spec, tuple(objects), (table, shelf), layout)
 
 
 def throwing_world() -> World:
     """The PA-10 scene: the arm on a floor with the ball welded in its hand."""
-    pa10 = robots.load("pa10")
-    spec = mujoco.MjSpec.from_file(str(pa10.folder / "scene.xml"))
+    pa10 = robots.describe("pa10")
+    spec = robots.build_spec(pa10)
     spec.add_sensor(
         name="ball_position",
         type=mujoco.mjtSensor.mjSENS_FRAMEPOS,

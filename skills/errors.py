@@ -11,3 +11,10 @@ class BesmanError(ValueError):
 
 class InputError(BesmanError):
     """An argument is malformed or out of range (the message names it)."""
+
+
+class UnknownNameError(InputError, KeyError):
+    """A name (of a joint group, arm, object, task...) that does not exist; the message lists the valid
+    ones. Also a ``KeyError``, as a failed lookup by name."""
+
+    __str__ = Exception.__str__  # the message as written (a KeyError would quote it)

@@ -26,7 +26,7 @@ def test_version_and_help(capsys):
 def test_robots_lists_the_models(capsys):
     code, out, _ = run_cli(capsys, "robots")
     assert code == 0
-    assert [line.split("\t")[0] for line in out.splitlines()] == ["aila", "pa10"]
+    assert [line.split("\t")[0] for line in out.splitlines()] == ["aila", "pa10", "ur5e"]
 
 
 def test_robots_show_json_is_the_joint_table(capsys):

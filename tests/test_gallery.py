@@ -16,11 +16,11 @@ from besman.sim import Executor, tabletop_world
 from besman.sim.executor import limit_violations
 from besman.sim.throw_execution import ThrowingExecutor
 from besman.sim.throwing import ThrowingTask
-from besman.sim.world import TABLE, GraspableObject
+from besman.sim.world import GraspableObject
 from besman.skills.pool import SkillTemplatePool
 from besman.trees.blackboard import set_task_values
 from besman.trees.conditions import ArmsApart, ObjectAt
-from besman.trees.gallery import DEMOS, SORT_PLACES, demo, run_demo
+from besman.trees.gallery import DEMOS, demo, run_demo, sort_places
 from besman.trees.guards import KeepApart
 from besman.trees.leaves import ExecutePrimitive
 from besman.trees.loops import ForEach
@@ -79,7 +79,7 @@ def test_for_each_stops_at_the_first_failure_and_refuses_what_is_not_a_list():
 def test_a_leaf_reads_its_object_from_the_blackboard():
     py_trees.blackboard.Blackboard.clear()
     world = tabletop_world((GraspableObject("red"), GraspableObject("blue")))
-    world.place_on("blue", TABLE.name, 0.5, -0.1)
+    world.place_on("blue", "table", 0.5, -0.1)
     set_task_values({"which": "blue"})
     check = ObjectAt("there?", object="/task/which", position=[0.5, -0.1])
     assert Runner(check, Executor(world)).run().status == "SUCCESS"
@@ -88,12 +88,13 @@ def test_a_leaf_reads_its_object_from_the_blackboard():
 
 
 def test_two_arms_move_in_lockstep_and_the_guard_sees_their_distance():
-    """The left arm, added to the right arm's executor, moves while the right one does: one physics, both
-    arms commanded every cycle within their limits, both at their goals."""
+    """The left arm, driven with the right arm by one executor, moves while the right one does: one physics,
+    both arms commanded every cycle within their limits, both at their goals; the waist they share is held."""
     py_trees.blackboard.Blackboard.clear()
     world = tabletop_world()
-    right = Executor(world, ("right_arm",), "right_gripper")
-    left = right.add_arm("left", ("left_arm",), "left_gripper")
+    right = Executor(world, ("right", "left"))
+    left = right.arm_executor("left")
+    assert right.arm.groups == ("right_arm",) and left.arm.groups == ("left_arm",)
     up = np.array([0.05, 0.0, 0.1])  # both hands 10 cm up and 5 cm forward from home, as they are turned
     goal_left = left.arm.site_pose(left.position).position + up
     goal_right = right.arm.site_pose(right.position).position + up
@@ -206,7 +207,7 @@ def test_every_demo_succeeds_in_ten_seeded_configurations(name):
     assert failed == []
     if name == "sort":
         for summary in summaries:
-            assert summary["slipped"] in SORT_PLACES
+            assert summary["slipped"] in sort_places("aila")
             assert max(summary["placement_errors_m"].values()) <= 0.02
     if name == "throw":
         assert max(s["miss_m"] for s in summaries) <= 0.5
@@ -219,8 +220,7 @@ def test_keep_apart_stops_its_subtree_when_the_arms_come_closer_than_its_margin(
     a small one it is what its child is."""
     py_trees.blackboard.Blackboard.clear()
     world = tabletop_world()
-    right = Executor(world, ("right_arm",), "right_gripper")
-    right.add_arm("left", ("left_arm",), "left_gripper")
+    right = Executor(world, ("right", "left"))
     home = right.position.copy()
 
     def guarded(margin):

@@ -94,7 +94,7 @@ def test_unknown_robot_lists_the_available_ones():
             r"limits.j1.velocity: expected int or float",
         ),
         (description(keyframe="ready"), None, "no keyframe 'ready'"),
-        (description(model="missing.xml"), None, "missing.xml: the model does not compile"),
+        (description(model="missing.xml"), None, "missing.xml: the model does not load"),
     ],
 )
 def test_bad_descriptions_name_the_file_and_the_problem(tmp_path, desc, text, message):

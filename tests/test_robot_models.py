@@ -8,6 +8,7 @@ import pytest
 
 import besman.robots as robots
 from besman.skills import quaternion
+from besman.skills.errors import UnknownNameError
 from besman.skills.transformation import minimum_jerk
 
 # DFKI's joint-limit configuration (rad, rad/s), as in shared/reference/robots.md.
@@ -60,13 +61,13 @@ def joint_range(model, name):
     return model.jnt_range[model.joint(name).id]
 
 
-@pytest.fixture(scope="module", params=["aila", "pa10"])
+@pytest.fixture(scope="module", params=["aila", "pa10", "ur5e"])
 def robot(request):
     return robots.load(request.param)
 
 
-def test_available_lists_both_robots():
-    assert robots.available() == ["aila", "pa10"]
+def test_available_lists_the_shipped_robots():
+    assert robots.available() == ["aila", "pa10", "ur5e"]
 
 
 def test_home_keyframe_is_held_without_drift(robot):
@@ -76,11 +77,12 @@ def test_home_keyframe_is_held_without_drift(robot):
     start = data.site_xpos.copy()
     limited = model.jnt_limited.astype(bool)
     addresses = model.jnt_qposadr[limited]
+    # Soft joint limits give a little: the Robotiq 2F-85's linkage rests 0.1 mrad past its coupler's limit.
     for _ in range(round(2.0 / model.opt.timestep)):
         mujoco.mj_step(model, data)
         qpos = data.qpos[addresses]
-        assert np.all(qpos >= model.jnt_range[limited, 0] - 1e-6)
-        assert np.all(qpos <= model.jnt_range[limited, 1] + 1e-6)
+        assert np.all(qpos >= model.jnt_range[limited, 0] - 1e-3)
+        assert np.all(qpos <= model.jnt_range[limited, 1] + 1e-3)
     drift = np.linalg.norm(data.site_xpos - start, axis=1)
     assert drift.max() < 1e-3, f"site {model.site(int(drift.argmax())).name} drifted {drift.max():.2e} m"
     assert not any(warning.number for warning in data.warning)
@@ -101,7 +103,8 @@ def test_position_actuators_cover_exactly_the_joint_ranges(robot):
             a = model.actuator(actuator)
             assert model.actuator_gaintype[a.id] == mujoco.mjtGain.mjGAIN_FIXED
             if model.actuator_trntype[a.id] == mujoco.mjtTrn.mjTRN_JOINT:
-                np.testing.assert_array_equal(a.ctrlrange, model.jnt_range[a.trnid[0]])
+                # Menagerie's UR5e rounds +-2 pi to 6.2831 for the commands and 6.28319 for the joints.
+                np.testing.assert_allclose(a.ctrlrange, model.jnt_range[a.trnid[0]], atol=1e-4)
     assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
 
 
@@ -149,8 +152,10 @@ def test_aila_groups_and_actuators():
     for name in ("right_wrist_force", "right_wrist_torque", "left_wrist_force", "left_wrist_torque"):
         assert mujoco.mj_name2id(aila.model, mujoco.mjtObj.mjOBJ_SENSOR, name) >= 0
     assert mujoco.mj_name2id(aila.model, mujoco.mjtObj.mjOBJ_CAMERA, "head_camera") >= 0
-    with pytest.raises(KeyError, match="groups: base, torso"):
+    with pytest.raises(UnknownNameError, match="groups: base, torso"):
         aila.group("tail")
+    with pytest.raises(UnknownNameError, match="no arm 'middle'; arms: right, left"):
+        aila.arm("middle")
 
 
 def _line_distance(p1, d1, p2, d2):

@@ -12,7 +12,7 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 
 from besman.learning.template_selection import CANDIDATES, choose_kernel
 from besman.sim.executor import Executor
-from besman.sim.world import TABLE, tabletop_world
+from besman.sim.world import tabletop_world
 from besman.skills import DMP, DMPSettings, MovementPrimitive, zero_shot
 from besman.skills.errors import InputError
 from besman.skills.pool import PoolError, SkillTemplatePool
@@ -385,7 +385,7 @@ def test_a_tree_file_names_a_pool_whose_template_drives_aila(tmp_path):
     names; the tree instantiates it for tau = 0.5 and executes the primitive."""
     py_trees.blackboard.Blackboard.clear()
     world = tabletop_world()
-    world.place_on("box", TABLE.name, 0.55, -0.08)
+    world.place_on("box", "table", 0.55, -0.08)
     executor = Executor(world)
     home = executor.position.copy()
     shift = np.array([0.3, -0.3, -0.3, 0.5, -0.5, 0.4, 0.3, 0.4])

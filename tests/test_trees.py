@@ -7,7 +7,7 @@ from py_trees.common import Status
 
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.motions import MotionStatus, Stop
-from besman.sim.world import TABLE, tabletop_world
+from besman.sim.world import tabletop_world
 from besman.skills import DMP, MovementPrimitive
 from besman.trees import (
     ExecutePrimitive,
@@ -29,7 +29,7 @@ HOME_SHIFT = np.array([0.3, -0.3, -0.3, 0.5, -0.5, 0.4, 0.3, 0.4])  # stays in r
 def executor():
     py_trees.blackboard.Blackboard.clear()
     world = tabletop_world()
-    world.place_on("box", TABLE.name, 0.55, -0.08)
+    world.place_on("box", "table", 0.55, -0.08)
     return Executor(world)
 
 
@@ -145,7 +145,7 @@ def test_grasp_then_place_recovers_from_a_slip(executor):
         )
         if transport_ticks == 25 and not slipped:  # half a second into the transport, the box in the air
             assert executor.hand.holds("box")
-            executor.world.place_on("box", TABLE.name, 0.50, -0.12)  # out of the hand, back on the table
+            executor.world.place_on("box", "table", 0.50, -0.12)  # out of the hand, back on the table
             slipped = True
         executor.advance(runner.cycles_per_tick)
     assert slipped

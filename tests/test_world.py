@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from besman.sim.faults import FaultMonitor
-from besman.sim.world import SHELF, TABLE, GraspableObject, tabletop_world, throwing_world
+from besman.skills.errors import UnknownNameError
+from besman.sim.world import GraspableObject, tabletop_world, throwing_world
 
 
 @pytest.fixture(scope="module")
@@ -33,16 +34,19 @@ def test_objects_rest_where_they_are_placed(world):
     for _ in range(250):
         mujoco.mj_step(world.model, world.data)
     pose = world.object_pose("box")
-    np.testing.assert_allclose(pose.position, [0.5, -0.4, SHELF.height + 0.03], atol=2e-3)
-    assert SHELF.contains(0.5, -0.4) and not SHELF.contains(0.5, 0.0)
-    assert TABLE.height < SHELF.height
-    world.reset()
-    np.testing.assert_allclose(world.object_pose("box").position, [0.55, -0.08, TABLE.height + 0.03])
+    table, shelf = world.surface("table"), world.surface("shelf")
+    np.testing.assert_allclose(pose.position, [0.5, -0.4, shelf.height + 0.03], atol=2e-3)
+    assert shelf.contains(0.5, -0.4) and not shelf.contains(0.5, 0.0)
+    assert (table.height, shelf.height) == (0.78, 0.90)  # AILA's layout
+    world.reset()  # the box at the middle of the layout's object area
+    np.testing.assert_allclose(world.object_pose("box").position, [0.535, -0.075, table.height + 0.03])
 
 
 def test_object_errors_name_the_problem(world):
-    with pytest.raises(KeyError, match="no object 'cup' in the world; objects: box"):
+    with pytest.raises(UnknownNameError, match="no object 'cup' in the world; objects: box"):
         world.object_pose("cup")
+    with pytest.raises(UnknownNameError, match="no surface 'floor' in the world; surfaces: table, shelf"):
+        world.place_on("box", "floor", 0.5, 0.0)
     with pytest.raises(ValueError, match="3 \\+ 4 finite numbers"):
         world.set_object_pose("box", [0.5, np.nan, 1.0])
     with pytest.raises(ValueError, match="shape must be one of"):
@@ -52,7 +56,7 @@ def test_object_errors_name_the_problem(world):
 def test_several_objects(world):
     cylinder = GraspableObject("can", shape="cylinder", size=(0.033, 0.06), mass=0.35)
     two = tabletop_world((GraspableObject("box"), cylinder))
-    assert two.object_pose("can").position[2] == pytest.approx(TABLE.height + 0.06)
+    assert two.object_pose("can").position[2] == pytest.approx(two.surface("table").height + 0.06)
     assert (
         two.robot.group("right_arm").qpos_indices.tolist()
         == world.robot.group("right_arm").qpos_indices.tolist()

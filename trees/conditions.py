@@ -16,6 +16,7 @@ from typing import ClassVar
 import numpy as np
 from py_trees.common import Access, Status
 
+from besman.sim.pick_place import PLACE_TOLERANCE
 from besman.sim.proximity import ArmProximity
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
@@ -52,7 +53,7 @@ class ObjectAt(SimulationBehaviour):
         *,
         object: str,
         position: Sequence[float] | None = None,
-        tolerance: float = 0.02,
+        tolerance: float = PLACE_TOLERANCE,
         namespace: str = "",
         remap: Mapping[str, str] | None = None,
     ):

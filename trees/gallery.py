@@ -7,11 +7,11 @@ robot does not plan (a :mod:`disturbance <besman.sim.disturbances>`), and how it
 same seed gives the same configuration and the same run. ``besman demo --list`` lists :data:`DEMOS`;
 ``besman demo NAME [--seed N] [--view]`` runs one.
 
-- ``grasp-then-place``: AILA takes the box from the table to the shelf (without a seed: the README's
-  configuration).
+- ``grasp-then-place``: the robot (AILA by default; ``--robot NAME``) takes the box from the table to the
+  shelf (without a seed: the README's configuration on AILA, the middle of the layout's areas elsewhere).
 - ``sort``: three boxes, each to its own place on the shelf, in a loop over the blackboard's list of objects
   (:class:`~besman.trees.loops.ForEach`); one box is taken out of the hand during its transport and set down
-  elsewhere on the table, and the tree grasps it again.
+  elsewhere on the table, and the tree grasps it again. Any robot with a tabletop layout.
 - ``handover``: AILA's left arm picks a bar from the table's left side at one end while the right arm gets
   ready (in parallel), presents it in front of the torso, the right hand takes the other end (both grippers
   closed), the left lets go and rises, and the right arm puts the bar on the shelf while the left goes home
@@ -26,16 +26,18 @@ The tree files live in the source checkout (``examples/trees``), beside the pool
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import py_trees
 
+import besman.robots as robots
 from besman.sim.disturbances import TakeFromHand
 from besman.sim.executor import Executor
+from besman.sim.pick_place import PLACE_TOLERANCE
 from besman.sim.proximity import ArmProximity, moved_geoms
-from besman.sim.world import TABLE, GraspableObject, tabletop_world
+from besman.sim.world import GraspableObject, tabletop_world
 from besman.skills.errors import InputError
 from besman.trees.blackboard import set_task_values
 from besman.trees.files import load_tree
@@ -44,7 +46,6 @@ from besman.trees.tabletop import summary as tabletop_summary
 from besman.trees.tabletop import tabletop_run
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "trees"
-PLACED = 0.02  # m: an object counts as placed within this distance of its place
 README_CONFIGURATION = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
 Observer = Callable[[Runner, dict], None]
 
@@ -57,21 +58,39 @@ class DemoRun:
     runner: Runner
     settings: dict
     judge: Callable[[RunResult], dict]
+    robot: str = "aila"
 
 
 @dataclass(frozen=True)
 class Demo:
-    """A demo of the gallery: its name, one line on what it shows, its tree file, and how a run is
-    prepared (``prepare(seed, options, observe)``)."""
+    """A demo of the gallery: its name, one line on what it shows, its tree file, how a run is prepared
+    (``prepare(seed, options, observe)``; ``options["robot"]`` names the robot), the robots it runs on by
+    default and which robots can run it (``fits(robot description)``)."""
 
     name: str
     title: str
     tree: str
     prepare: Callable[[int | None, Mapping, Observer | None], DemoRun]
+    robot: str
+    fits: Callable[[robots.RobotDescription], bool]
 
     @property
     def path(self) -> Path:
         return EXAMPLES / self.tree
+
+
+def _one_hand_tabletop(robot: robots.RobotDescription) -> bool:
+    """A tabletop layout, and a first arm with a gripper."""
+    arms = list(robot.arms.values())
+    return robot.tabletop is not None and bool(arms) and arms[0].gripper is not None
+
+
+def _two_hand_tabletop(robot: robots.RobotDescription) -> bool:
+    """A tabletop layout and two arms "right" and "left", each with a gripper."""
+    arms = robot.arms
+    return robot.tabletop is not None and all(
+        side in arms and arms[side].gripper is not None for side in ("right", "left")
+    )
 
 
 def observers(*calls: Observer | None) -> Observer | None:
@@ -112,15 +131,31 @@ def _runner(
 # -- grasp-then-place --------------------------------------------------------------------------------------
 
 
+def _middle(area) -> tuple[float, float]:
+    (x0, x1), (y0, y1) = area
+    return round((x0 + x1) / 2, 4), round((y0 + y1) / 2, 4)
+
+
+def grasp_then_place_values(robot: str, seed: int | None) -> dict[str, tuple[float, float]]:
+    """The object and place of grasp-then-place without a seed: the README's on AILA, the middle of the
+    layout's object and place areas on other robots (with a seed: none, they are drawn)."""
+    if seed is not None:
+        return {}
+    if robot == "aila":
+        return dict(README_CONFIGURATION)
+    layout = robots.describe(robot).tabletop
+    return {"object": _middle(layout.objects), "place": _middle(layout.places)}
+
+
 def _grasp_then_place(seed: int | None, options: Mapping, observe: Observer | None) -> DemoRun:
-    values = dict(README_CONFIGURATION) if seed is None else {}
-    runner, settings = tabletop_run(EXAMPLES / "grasp_then_place.yaml", values, seed=seed)
+    robot = options["robot"]
+    values = grasp_then_place_values(robot, seed)
+    runner, settings = tabletop_run(EXAMPLES / "grasp_then_place.yaml", values, seed=seed, robot=robot)
     runner.observe = observe
 
     def judge(result: RunResult) -> dict:
         outcome = tabletop_summary(runner, settings, result)
-        success = result.status == "SUCCESS" and outcome["placement_error_m"] <= PLACED
-        return {"success": success, **outcome, "settings": settings}
+        return {**outcome, "settings": settings}
 
     return DemoRun(runner, settings, judge)
 
@@ -132,21 +167,32 @@ SORT_OBJECTS = (
     GraspableObject("green", rgba=(0.20, 0.62, 0.25, 1.0)),
     GraspableObject("blue", rgba=(0.15, 0.35, 0.80, 1.0)),
 )
-# Each box's own place on the shelf, 14-15 cm apart (the open hand spans 9 cm, plus the fingers). The
-# carried box clears the shelf by 6 cm, as high as a box that stands there, so the far place is filled
-# first and no transport passes over a placed box.
-SORT_PLACES = {"blue": (0.52, -0.50), "red": (0.45, -0.37), "green": (0.60, -0.37)}
-# Where the boxes stand: x, y from low to high (the right arm's top-down grasps from its home pose).
-SORT_TABLE_LOW, SORT_TABLE_HIGH = (0.47, -0.16), (0.64, 0.0)
+# Each box's own place on the shelf, from the middle of the layout's place area, 14-15 cm apart (the open
+# hand spans 9 cm, plus the fingers). The carried box clears the shelf by 6 cm, as high as a box that
+# stands there, so the far place is filled first and no transport passes over a placed box. (On AILA:
+# blue (0.52, -0.50), red (0.45, -0.37), green (0.60, -0.37).)
+SORT_OFFSETS = {"blue": (-0.015, -0.09), "red": (-0.085, 0.04), "green": (0.065, 0.04)}
+# Where the boxes stand, from the layout's object area: 2 cm farther and 1 cm more to the right (on AILA:
+# x, y from (0.47, -0.16) to (0.64, 0.0), the right arm's top-down grasps from its home pose).
+SORT_AREA_SHIFT = ((0.02, 0.02), (-0.01, 0.0))
 SORT_SPACING = 0.12  # m between the boxes on the table: the open fingers keep clear of the neighbours
 
 
-def _free_spots(rng: np.random.Generator, count: int, taken=()) -> list[tuple[float, float]]:
-    """``count`` spots on the table (between :data:`SORT_TABLE_LOW` and ``_HIGH``), each
+def sort_places(robot: str) -> dict[str, tuple[float, float]]:
+    """Each sorted box's place on ``robot``'s shelf."""
+    x, y = _middle(robots.describe(robot).tabletop.places)
+    return {name: (round(x + dx, 4), round(y + dy, 4)) for name, (dx, dy) in SORT_OFFSETS.items()}
+
+
+def _free_spots(rng: np.random.Generator, robot: str, count: int, taken=()) -> list[tuple[float, float]]:
+    """``count`` spots on ``robot``'s table (its object area shifted by :data:`SORT_AREA_SHIFT`), each
     :data:`SORT_SPACING` from the others and from ``taken``."""
+    (x0, x1), (y0, y1) = robots.describe(robot).tabletop.objects
+    (dx0, dx1), (dy0, dy1) = SORT_AREA_SHIFT
+    low, high = (x0 + dx0, y0 + dy0), (x1 + dx1, y1 + dy1)
     taken = [np.asarray(spot) for spot in taken]
     for _ in range(10_000):  # all at once, so that early spots cannot leave no room for later ones
-        spots = rng.uniform(SORT_TABLE_LOW, SORT_TABLE_HIGH, size=(count, 2))
+        spots = rng.uniform(low, high, size=(count, 2))
         together = [*taken, *spots]
         gaps = [np.linalg.norm(a - b) for i, a in enumerate(together) for b in together[i + 1 :]]
         if min(gaps, default=np.inf) >= SORT_SPACING:
@@ -155,24 +201,26 @@ def _free_spots(rng: np.random.Generator, count: int, taken=()) -> list[tuple[fl
 
 
 def _sort(seed: int | None, options: Mapping, observe: Observer | None) -> DemoRun:
+    robot = options["robot"]
+    places = sort_places(robot)
     rng = np.random.default_rng(seed)
     names = [item.name for item in SORT_OBJECTS]
-    spots = dict(zip(names, _free_spots(rng, len(names)), strict=True))
-    order = sorted(names, key=lambda name: SORT_PLACES[name][1])  # the far places first
+    spots = dict(zip(names, _free_spots(rng, robot, len(names)), strict=True))
+    order = sorted(names, key=lambda name: places[name][1])  # the far places first
     slipping = order[int(rng.integers(len(order)))]
     # It is set down clear of the boxes still on the table then (those after it in the loop).
     waiting = [spots[name] for name in order[order.index(slipping) + 1 :]]
-    slip = TakeFromHand(slipping, _free_spots(rng, 1, waiting)[0], after=float(rng.uniform(0.3, 0.9)))
-    items = [{"object": name, "target": list(SORT_PLACES[name])} for name in order]
+    slip = TakeFromHand(slipping, _free_spots(rng, robot, 1, waiting)[0], after=float(rng.uniform(0.3, 0.9)))
+    items = [{"object": name, "target": list(places[name])} for name in order]
     py_trees.blackboard.Blackboard.clear()
     root = load_tree(EXAMPLES / "sort.yaml")
-    world = tabletop_world(SORT_OBJECTS)
+    world = tabletop_world(SORT_OBJECTS, robot)
     for name, (x, y) in spots.items():
-        world.place_on(name, TABLE.name, x, y)
+        world.place_on(name, "table", x, y)
     set_task_values({"objects": items})
     settings = {
         "objects": spots,
-        "places": {name: list(SORT_PLACES[name]) for name in order},
+        "places": {name: list(places[name]) for name in order},
         "slip": {"object": slip.object, "after_s": round(slip.after, 3), "set_down_at": list(slip.where)},
     }
 
@@ -184,15 +232,15 @@ def _sort(seed: int | None, options: Mapping, observe: Observer | None) -> DemoR
         settings,
         240.0,
         observers(lambda runner, _: slip(runner.executor), observe),
+        robot=robot,
     )
 
     def judge(result: RunResult) -> dict:
         errors = {
-            name: float(np.linalg.norm(world.object_pose(name).position[:2] - SORT_PLACES[name]))
-            for name in names
+            name: float(np.linalg.norm(world.object_pose(name).position[:2] - places[name])) for name in names
         }
         return {
-            "success": result.status == "SUCCESS" and max(errors.values()) <= PLACED and slip.done,
+            "success": result.status == "SUCCESS" and max(errors.values()) <= PLACE_TOLERANCE and slip.done,
             "status": result.status,
             "placement_errors_m": {name: round(error, 4) for name, error in errors.items()},
             "slipped": slip.object if slip.done else None,
@@ -237,21 +285,23 @@ def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> D
     place = rng.uniform(*HANDOVER_PLACE).round(4)
     py_trees.blackboard.Blackboard.clear()
     root = load_tree(EXAMPLES / "handover.yaml")
-    world = tabletop_world((BAR,))
-    world.place_on("bar", TABLE.name, *bar)
-    # The right arm without the waist: a turning torso would carry the left hand, and the bar, with it.
-    right = Executor(world, ("right_arm",), "right_gripper")
-    left = right.add_arm("left", ("left_arm",), "left_gripper")
-    contacts = ArmContacts(right, left)
+    world = tabletop_world((BAR,), options["robot"])
+    world.place_on("bar", "table", *bar)
+    # Both arms at once: the waist they share is held (a turning torso would carry the left hand, and the
+    # bar, with it).
+    right = Executor(world, ("right", "left"))
+    contacts = ArmContacts(right, right.arm_executor("left"))
     set_task_values({"place": place})
     settings = {"bar": bar.tolist(), "place": place.tolist()}
 
-    runner = _runner("handover", root, right, seed, settings, 120.0, observers(contacts, observe))
+    runner = _runner(
+        "handover", root, right, seed, settings, 120.0, observers(contacts, observe), robot=options["robot"]
+    )
 
     def judge(result: RunResult) -> dict:
         error = float(np.linalg.norm(world.object_pose("bar").position[:2] - place))
         return {
-            "success": result.status == "SUCCESS" and error <= PLACED and contacts.touching == 0,
+            "success": result.status == "SUCCESS" and error <= PLACE_TOLERANCE and contacts.touching == 0,
             "status": result.status,
             "placement_error_m": round(error, 4),
             "ticks_arms_touching": contacts.touching,
@@ -322,28 +372,37 @@ DEMOS: dict[str, Demo] = {
     for demo in (
         Demo(
             "grasp-then-place",
-            "AILA takes the box from the table and puts it on the shelf",
+            "the robot takes the box from the table and puts it on the shelf (--robot NAME)",
             "grasp_then_place.yaml",
             _grasp_then_place,
+            "aila",
+            _one_hand_tabletop,
         ),
         Demo(
             "sort",
             "three boxes, each to its own place on the shelf, in a loop over the objects; one slips and is "
-            "grasped again",
+            "grasped again (--robot NAME)",
             "sort.yaml",
             _sort,
+            "aila",
+            _one_hand_tabletop,
         ),
         Demo(
             "handover",
-            "AILA's left arm picks a bar and hands it to the right arm, which puts it on the shelf",
+            "a two-arm robot's left arm picks a bar and hands it to the right arm, which puts it on the "
+            "shelf",
             "handover.yaml",
             _handover,
+            "aila",
+            _two_hand_tabletop,
         ),
         Demo(
             "throw",
             "the PA-10 throws the ball at a target with the throwing skill template (--target X,Y)",
             "throw.yaml",
             _throw,
+            "pa10",
+            lambda robot: robot.name == "pa10",
         ),
     )
 }
@@ -369,7 +428,23 @@ def run_demo(
     log: str | Path | None = None,
     observe: Observer | None = None,
 ) -> dict:
-    """Runs a demo and returns its judged summary (``success``, measurements, the configuration)."""
-    prepared = demo(name).prepare(seed, dict(options or {}), observe)
+    """Runs a demo and returns its judged summary (``success``, measurements, the configuration);
+    ``options["robot"]`` chooses the robot (default: the demo's)."""
+    prepared = prepare_demo(name, seed, options, observe)
     result = prepared.runner.run(log=log)
-    return {"demo": name, "seed": seed, **prepared.judge(result)}
+    return {"demo": name, "seed": seed, "robot": prepared.robot, **prepared.judge(result)}
+
+
+def prepare_demo(
+    name: str, seed: int | None = None, options: Mapping | None = None, observe: Observer | None = None
+) -> DemoRun:
+    """A demo's prepared run, its robot (``options["robot"]``, default the demo's) checked first: a robot
+    the demo does not fit is refused by name, before any work."""
+    found = demo(name)
+    options = dict(options or {})
+    robot = options.get("robot") or found.robot
+    if not found.fits(robots.describe(robot)):
+        fitting = [other for other in robots.available() if found.fits(robots.describe(other))]
+        raise InputError(f"demo {name} does not run on {robot!r}; robots it runs on: {', '.join(fitting)}")
+    options["robot"] = robot
+    return replace(found.prepare(seed, options, observe), robot=robot)

@@ -19,7 +19,6 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 from py_trees.common import Access, Status
 
-from besman.sim.manipulation import OPEN
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
@@ -146,7 +145,8 @@ class Gripper(MotionLeaf):
         super().__init__(name, timeout=timeout, arm=arm)
         self.action, self.expect_grasp = action, expect_grasp
         self.use_object(object)
-        self.opening = (OPEN if action == "open" else 0.0) if opening is None else float(opening)
+        # Opening: the gripper's own for "open" (None), closed for "close", unless given.
+        self.opening = (None if action == "open" else 0.0) if opening is None else float(opening)
 
     def make_motion(self) -> Motion:
         return GripperMotion(

@@ -136,9 +136,9 @@ class Runner:
         self.nodes = [(node, self.paths[node.id]) for node in root.iterate()]  # the tree's shape is fixed
         self._object_addresses = object_addresses(executor.world)
         hand = executor.hand
-        self._fingers = None if hand is None else hand.gripper.qpos_indices
+        self._fingers = None if hand is None else hand.fingers.qpos_indices
         self._companions = [  # the other arms driven in lockstep: name, joints, fingers
-            (name, arm.arm.qpos_indices, None if arm.hand is None else arm.hand.gripper.qpos_indices)
+            (name, arm.arm.qpos_indices, None if arm.hand is None else arm.hand.fingers.qpos_indices)
             for name, arm in executor.companions.items()
         ]
 

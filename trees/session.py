@@ -28,9 +28,8 @@ import threading
 import numpy as np
 from py_trees.common import Status
 
-from besman.sim.pick_place import PICK_PLACE_BOUNDS
+from besman.sim.pick_place import pick_place_bounds
 from besman.sim.viewer import Viewer
-from besman.sim.world import SHELF, TABLE
 from besman.trees.runner import Runner, RunResult
 from besman.trees.tabletop import TreeSource, tabletop_run
 from besman.trees.watching import Watch
@@ -44,7 +43,8 @@ class _Abandoned(KeyboardInterrupt):
 
 
 class Session:
-    """A tree on AILA's tabletop, run from the browser (see the module documentation)."""
+    """A tree on a robot's tabletop (AILA's by default), run from the browser (see the module
+    documentation)."""
 
     def __init__(
         self,
@@ -54,8 +54,10 @@ class Session:
         seed: int | None = None,
         speed: float = 1.0,
         viewer_options: dict | None = None,
+        robot: str = "aila",
     ) -> None:
-        self.tree, self.seed = tree, seed
+        self.tree, self.seed, self.robot = tree, seed, robot
+        self.bounds = pick_place_bounds(robot)
         self._lock = threading.Condition()
         self._running = False  # the run may tick
         self._steps = 0  # ticks left before pausing (-1: no limit)
@@ -66,7 +68,7 @@ class Session:
         self._log = None  # the log of the next run (the first run's, from the command line)
         self.result: RunResult | None = None
         self.error: Exception | None = None  # what broke the last run, if anything did
-        runner, settings = tabletop_run(tree, values, seed=seed)  # values not given are drawn with the seed
+        runner, settings = tabletop_run(tree, values, seed=seed, robot=robot)  # values not given: drawn
         self.values = {name: tuple(value) for name, value in settings.items()}
         self.runner = self._new_runner(runner)
         self.viewer = Viewer(self.runner.executor.world.model, **(viewer_options or {}))
@@ -87,10 +89,9 @@ class Session:
         self.step_button.on_click(lambda _: self.step())
         self.reset_button.on_click(lambda _: self.reset())
         self.speed.on_update(lambda _: self._watch and setattr(self._watch, "speed", float(self.speed.value)))
-        self.gizmos = {
-            "object": self._gizmo("object", TABLE.height),
-            "place": self._gizmo("place", SHELF.height),
-        }
+        world = self.runner.executor.world
+        self.table, self.shelf = world.surface("table").height, world.surface("shelf").height
+        self.gizmos = {"object": self._gizmo("object", self.table), "place": self._gizmo("place", self.shelf)}
         self._show_initial()
 
     # -- controls ------------------------------------------------------------------------------------------
@@ -129,7 +130,9 @@ class Session:
             self._thread.join()
         with self._lock:
             self._abandon, self._thread, self.result = False, None, None
-        self.runner = self._new_runner(tabletop_run(self.tree, self.values, seed=self.seed)[0])
+        self.runner = self._new_runner(
+            tabletop_run(self.tree, self.values, seed=self.seed, robot=self.robot)[0]
+        )
         self._show_initial()
 
     @property
@@ -146,11 +149,11 @@ class Session:
         x, y = (float(v) for v in xy)
         tau = np.array([*self.values["object"], *self.values["place"]])
         tau[TAU_COLUMNS[name]] = (x, y)
-        PICK_PLACE_BOUNDS.check(tau)  # a value outside the task's box is refused with its name
+        self.bounds.check(tau)  # a value outside the task's box is refused with its name
         self.values[name] = (x, y)
         self.gizmos[name].position = (x, y, self.gizmos[name].position[2])
         if name == "place":
-            self.overlays.show_place((x, y, SHELF.height))
+            self.overlays.show_place((x, y, self.shelf))
         self.state.content = f"{name} set to ({x:.3f}, {y:.3f}); Reset or Run uses it"
 
     def close(self) -> None:
@@ -215,7 +218,7 @@ class Session:
         self.overlays.update(data)
         for name, handle in self.gizmos.items():
             handle.position = (*self.values[name], handle.position[2])
-        self.overlays.show_place((*self.values["place"], SHELF.height))
+        self.overlays.show_place((*self.values["place"], self.shelf))
 
     def _gizmo(self, name: str, height: float):
         """A gizmo that moves in x and y within the task's bounds for ``name``; letting go sets the value."""
@@ -223,8 +226,8 @@ class Session:
         return self.viewer.planar_gizmo(
             f"/task/{name}",
             (*self.values[name], height),
-            PICK_PLACE_BOUNDS.low[columns],
-            PICK_PLACE_BOUNDS.high[columns],
+            self.bounds.low[columns],
+            self.bounds.high[columns],
             scale=0.15,
             on_release=lambda xy: self.set_value(name, xy),
             status=self.state,

@@ -1,10 +1,11 @@
-"""Runs on AILA's tabletop: the box on the table, the place target on the blackboard, a tree, a log.
+"""Runs on a robot's tabletop (AILA's by default): the box on the table, the place target on the blackboard,
+a tree, a log.
 
 The task-specific half of running a tree (the generic runner is :mod:`besman.trees.runner`): the object
 and place positions come from the command line (``--set object=x,y``, ``--set place=x,y``, checked against
-the pick-and-place task's bounds) or are drawn from those bounds with a seed; the box is put on the table,
-``/task/<name>`` holds every value, and the log header records all of it, so :func:`replay` can run a
-logged run again and compare its statuses.
+the robot's pick-and-place bounds) or are drawn from those bounds with a seed; the box is put on the table,
+``/task/<name>`` holds every value, and the log header records all of it (the robot too), so :func:`replay`
+can run a logged run again and compare its statuses.
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ import numpy as np
 import py_trees
 
 from besman.sim.executor import Executor
-from besman.sim.pick_place import PICK_PLACE_BOUNDS
-from besman.sim.world import TABLE, tabletop_world
+from besman.sim.pick_place import PLACE_TOLERANCE, pick_place_bounds
+from besman.sim.world import tabletop_world
 from besman.skills.errors import InputError
 from besman.trees.blackboard import set_task_values, task_keys_read
 from besman.trees.files import describe, load_tree, loads_tree
@@ -26,10 +27,12 @@ from besman.trees.runner import Runner, RunResult, read_log, statuses
 TreeSource = str | Path | py_trees.behaviour.Behaviour
 
 
-def pick_place_settings(values: dict[str, tuple[float, ...]], seed: int | None) -> dict[str, list[float]]:
-    """The object and place positions of a tabletop run: given values (checked against the pick-and-place
-    task's bounds) or, where missing, drawn uniformly from those bounds with ``seed``."""
-    bounds = PICK_PLACE_BOUNDS
+def pick_place_settings(
+    values: dict[str, tuple[float, ...]], seed: int | None, robot: str = "aila"
+) -> dict[str, list[float]]:
+    """The object and place positions of a tabletop run: given values (checked against the robot's
+    pick-and-place bounds) or, where missing, drawn uniformly from those bounds with ``seed``."""
+    bounds = pick_place_bounds(robot)
     draw = np.random.default_rng(seed).uniform(bounds.low, bounds.high)
     settings = {name: [float(v) for v in value] for name, value in values.items()}
     for name, columns in (("object", slice(0, 2)), ("place", slice(2, 4))):
@@ -50,9 +53,10 @@ def tabletop_run(
     *,
     seed: int | None = None,
     max_sim_time: float = 120.0,
+    robot: str = "aila",
 ) -> tuple[Runner, dict[str, list[float]]]:
-    """A runner for a tree (a file, checked first, or a root behaviour) on AILA's tabletop, ready to run:
-    the box stands at ``object`` and ``/task/<name>`` holds every value (``place`` is where the box
+    """A runner for a tree (a file, checked first, or a root behaviour) on ``robot``'s tabletop, ready to
+    run: the box stands at ``object`` and ``/task/<name>`` holds every value (``place`` is where the box
     should go)."""
     from_file = not isinstance(tree, py_trees.behaviour.Behaviour)
     root = load_tree(tree) if from_file else tree  # every file problem is reported before anything runs
@@ -60,13 +64,14 @@ def tabletop_run(
     unknown = sorted(set(values or {}) - known)
     if unknown:
         raise InputError(f"--set {unknown[0]}: not a value of this run; valid: {', '.join(sorted(known))}")
-    settings = pick_place_settings(dict(values or {}), seed)
+    settings = pick_place_settings(dict(values or {}), seed, robot)
     py_trees.blackboard.Blackboard.clear()
-    world = tabletop_world()
-    world.place_on("box", TABLE.name, *settings["object"])
+    world = tabletop_world(robot=robot)
+    world.place_on("box", "table", *settings["object"])
     set_task_values(settings)
     run_info = {
         "tree": str(Path(tree).resolve()) if from_file else describe(root),
+        "robot": robot,
         "settings": settings,
         "seed": seed,
         "max_sim_time": max_sim_time,
@@ -81,23 +86,25 @@ def run_on_tabletop(
     seed: int | None = None,
     log: str | Path | None = None,
     max_sim_time: float = 120.0,
+    robot: str = "aila",
 ) -> dict:
-    """Runs a tree on AILA's tabletop (:func:`tabletop_run`) and returns its :func:`summary`."""
-    runner, settings = tabletop_run(tree, values, seed=seed, max_sim_time=max_sim_time)
+    """Runs a tree on ``robot``'s tabletop (:func:`tabletop_run`) and returns its :func:`summary`."""
+    runner, settings = tabletop_run(tree, values, seed=seed, max_sim_time=max_sim_time, robot=robot)
     return summary(runner, settings, runner.run(log=log))
 
 
 def summary(runner: Runner, settings: dict[str, list[float]], result: RunResult) -> dict:
-    """A tabletop run's outcome: status, placement error measured in the simulation (None for a tree that
-    does not read the place target), the box's position, simulated and wall time, ticks, failed node and
-    message."""
+    """A tabletop run's outcome: success (the tree succeeded and, for a tree that reads the place target,
+    the box stands within :data:`~besman.sim.pick_place.PLACE_TOLERANCE` of it), status, placement error
+    measured in the simulation (None for a tree that does not read the place target), the box's position,
+    simulated and wall time, ticks, failed node and message."""
     box = runner.executor.world.object_pose("box").position
     places = "place" in task_keys_read(runner.root)  # a tree that never reads the target places nothing
+    error = float(np.linalg.norm(box[:2] - np.asarray(settings["place"]))) if places else None
     return {
+        "success": result.status == "SUCCESS" and (error is None or error <= PLACE_TOLERANCE),
         "status": result.status,
-        "placement_error_m": float(np.linalg.norm(box[:2] - np.asarray(settings["place"])))
-        if places
-        else None,
+        "placement_error_m": error,
         "box_position": [round(float(v), 4) for v in box],
         "sim_time_s": result.sim_time_s,
         "wall_time_s": result.wall_time_s,
@@ -115,6 +122,8 @@ def replay(path: str | Path) -> list[dict[str, str]]:
     tree = run["tree"]
     if isinstance(tree, dict):  # a tree built in code, logged in the file format
         tree = loads_tree(json.dumps({"besman_tree": 1, "root": tree}))
-    runner, _ = tabletop_run(tree, settings, seed=run.get("seed"), max_sim_time=run["max_sim_time"])
+    runner, _ = tabletop_run(
+        tree, settings, seed=run.get("seed"), max_sim_time=run["max_sim_time"], robot=run.get("robot", "aila")
+    )
     runner.run()
     return list(statuses(runner.records))

@@ -129,9 +129,9 @@ class Replay:
         executor = _executor_of(header["run"])
         self.world = executor.world
         self._arm = executor.arm.qpos_indices
-        self._fingers = None if executor.hand is None else executor.hand.gripper.qpos_indices
+        self._fingers = None if executor.hand is None else executor.hand.fingers.qpos_indices
         self._arms = {  # the other arms of the run: joints and fingers
-            name: (arm.arm.qpos_indices, None if arm.hand is None else arm.hand.gripper.qpos_indices)
+            name: (arm.arm.qpos_indices, None if arm.hand is None else arm.hand.fingers.qpos_indices)
             for name, arm in executor.companions.items()
         }
         self._objects = object_addresses(self.world)
@@ -213,9 +213,11 @@ class Replay:
 
 def _executor_of(run: dict) -> Executor:
     """The executor (its world, arms and hands) that a logged run drove: a gallery demo's, rebuilt from its
-    name, seed and options, or AILA's tabletop (the arm and hand of ``besman run``)."""
+    name, seed, robot and options, or the robot's tabletop (the arm and hand of ``besman run``)."""
+    robot = run.get("robot")
     if run.get("demo") in (None, "grasp-then-place"):
-        return Executor(tabletop_world())
-    from besman.trees.gallery import demo
+        return Executor(tabletop_world(robot=robot or "aila"))
+    from besman.trees.gallery import prepare_demo
 
-    return demo(run["demo"]).prepare(run.get("seed"), run.get("options") or {}, None).runner.executor
+    options = {**(run.get("options") or {}), **({"robot": robot} if robot else {})}
+    return prepare_demo(run["demo"], run.get("seed"), options).runner.executor

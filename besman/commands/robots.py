@@ -6,12 +6,16 @@ import argparse
 import json
 import sys
 
+from besman.skills.errors import InputError
+
 
 def _robot_table(name: str) -> dict:
-    """The JSON-ready description of a robot: groups, and per joint its limits and actuator."""
+    """The JSON-ready description of a robot: its model, groups, arms, and per joint its limits."""
     from besman.robots import load
+    from besman.robots.assembly import model_path
 
     robot = load(name)
+    description = robot.description
     joints = []
     for group in robot.groups.values():
         for i, joint in enumerate(group.joints):
@@ -29,7 +33,11 @@ def _robot_table(name: str) -> dict:
     return {
         "name": robot.name,
         "title": robot.description.title,
-        "model": str(robot.description.model_file),
+        "model": str(model_path(description.model, description.folder, str(description.file))),
+        "attached": [
+            str(model_path(part.model, description.folder, str(description.file)))
+            for part in description.attach
+        ],
         "nq": robot.model.nq,
         "nu": robot.model.nu,
         "timestep": robot.model.opt.timestep,
@@ -42,15 +50,29 @@ def _robot_table(name: str) -> dict:
             }
             for group in robot.groups.values()
         },
+        "arms": {
+            arm.name: {
+                "groups": list(arm.groups),
+                "tcp": arm.tcp,
+                "gripper": None
+                if arm.gripper is None
+                else {
+                    "actuator": robot.model.actuator(arm.gripper.actuator).name,
+                    "opening_m": [arm.gripper.lower, arm.gripper.upper],
+                    "open_m": arm.gripper.open,
+                },
+            }
+            for arm in robot.arms.values()
+        },
         "joints": joints,
     }
 
 
 def _robots_list(args: argparse.Namespace) -> int:
-    from besman.robots import available, load
+    from besman.robots import available, describe
 
     for name in available():
-        print(f"{name}\t{load(name).description.title}")
+        print(f"{name}\t{describe(name).title}")
     return 0
 
 
@@ -89,6 +111,29 @@ def _robots_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _robots_gripper(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from besman.robots import load
+    from besman.robots.gripper import measure_openings
+
+    if not 2 <= args.steps <= 256:
+        raise InputError(f"--steps must be between 2 and 256, got {args.steps}")
+    robot = load(args.name)
+    gripper = robot.arm(args.arm).gripper
+    if gripper is None:
+        raise InputError(f"robot {robot.name!r}: arm {robot.arm(args.arm).name!r} has no gripper")
+    low, high = float(gripper.command.min()), float(gripper.command.max())
+    commands = np.linspace(low, high, args.steps)
+    openings = measure_openings(robot, args.arm, commands)
+    table = {
+        "opening": [round(float(v), 5) for v in openings],
+        "command": [round(float(c), 4) for c in commands],
+    }
+    print(json.dumps(table))
+    return 0
+
+
 def register(commands) -> None:
     """Adds this module's commands to the parser's subcommands."""
     robots = commands.add_parser("robots", help="list, describe and render the robot models")
@@ -105,3 +150,13 @@ def register(commands) -> None:
     render.add_argument("--height", type=int, default=720)
     render.add_argument("--keyframe", default=None, help="keyframe to show (default: home)")
     render.set_defaults(handler=_robots_render)
+    gripper = robot_commands.add_parser(
+        "gripper",
+        help="measure a gripper's opening (m per finger) across its commands: the description's table",
+    )
+    gripper.add_argument("name")
+    gripper.add_argument("--arm", default=None, help="the arm (default: the robot's first)")
+    gripper.add_argument(
+        "--steps", type=int, default=18, help="how many commands, evenly spaced (default 18)"
+    )
+    gripper.set_defaults(handler=_robots_gripper)

@@ -155,7 +155,8 @@ def _demo(args: argparse.Namespace) -> int:
     chosen = demo(args.name)  # an unknown name is refused with the list, before any work
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",))
-    options = {}
+    args.robot = _robot_for(chosen, args.robot)
+    options = {"robot": args.robot}
     if args.target is not None:
         if chosen.name != "throw":
             raise InputError(f"--target is for the throw demo, not {chosen.name}")
@@ -179,10 +180,10 @@ def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple[dict
     if not args.view:
         return run_demo(chosen.name, args.seed, options, log=args.log), []
     from besman.sim.viewer import Viewer
-    from besman.trees.gallery import observers
+    from besman.trees.gallery import observers, prepare_demo
     from besman.trees.watching import Watch
 
-    prepared = chosen.prepare(args.seed, options, None)
+    prepared = prepare_demo(chosen.name, args.seed, options)
     viewer = Viewer(prepared.runner.executor.world.model, host=args.host, port=args.port)
     print(f"viewer: {viewer.url} (the run goes at {args.speed:g}x real time)", file=sys.stderr, flush=True)
     prepared.runner.observe = observers(prepared.runner.observe, Watch(viewer, args.speed))
@@ -191,7 +192,9 @@ def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple[dict
     except BaseException:
         viewer.close()
         raise
-    return {"demo": chosen.name, "seed": args.seed, **prepared.judge(result)}, [viewer]
+    return {"demo": chosen.name, "seed": args.seed, "robot": prepared.robot, **prepared.judge(result)}, [
+        viewer
+    ]
 
 
 def _demo_outcome(summary: dict) -> str:
@@ -219,13 +222,25 @@ def _demo_outcome(summary: dict) -> str:
     return text
 
 
+def _robot_for(chosen, robot: str | None) -> str:
+    """The robot a demo runs on: ``--robot`` (refused by name if the demo does not fit it) or its own."""
+    import besman.robots as robots
+
+    robot = robot or chosen.robot
+    if not chosen.fits(robots.describe(robot)):  # an unknown robot is refused with the list
+        fitting = [name for name in robots.available() if chosen.fits(robots.describe(name))]
+        raise InputError(f"demo {chosen.name} does not run on {robot!r}; it runs on: {', '.join(fitting)}")
+    return robot
+
+
 def _grasp_then_place_demo(args: argparse.Namespace) -> int:
-    from besman.trees.gallery import README_CONFIGURATION, demo
+    from besman.trees.gallery import demo, grasp_then_place_values
 
     if not args.json:  # --json prints the summary alone
-        print("AILA grasps the box on the table and places it on the shelf (grasp-then-place tree)")
-    values = README_CONFIGURATION if args.seed is None else {}
+        print(f"{args.robot} grasps the box on the table and places it on the shelf (grasp-then-place tree)")
+    values = grasp_then_place_values(args.robot, args.seed)
     summary, viewers = tabletop(args, str(demo("grasp-then-place").path), values, args.log)
+    summary = {"demo": "grasp-then-place", "seed": args.seed, "robot": args.robot, **summary}
     _print_summary(summary, args.json)
     if not args.json:
         print(
@@ -261,8 +276,9 @@ def register(commands) -> None:
     tree_check.add_argument("files", nargs="+", metavar="FILE")
     tree_check.set_defaults(handler=_tree_check)
 
-    run = commands.add_parser("run", help="run a tree file on AILA's tabletop")
+    run = commands.add_parser("run", help="run a tree file on a robot's tabletop (default: AILA's)")
     run.add_argument("file")
+    run.add_argument("--robot", default="aila", help="the robot (besman robots list; default: aila)")
     run.add_argument(
         "--set",
         action="append",
@@ -286,6 +302,7 @@ def register(commands) -> None:
         "name", nargs="?", default="grasp-then-place", help="the demo (default: grasp-then-place)"
     )
     demo.add_argument("--list", action="store_true", help="list the demos and exit")
+    demo.add_argument("--robot", default=None, help="the robot (default: the demo's; besman demo --list)")
     demo.add_argument(
         "--seed", type=int, default=None, help="draws the demo's configuration (default: the README's)"
     )

@@ -23,20 +23,22 @@ def view_options(command: argparse.ArgumentParser) -> None:
 
 
 def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple[dict, list]:
-    """Runs ``tree`` on AILA's tabletop; with --view inside a browser session that stays open after the run
-    (returned in the list, for :func:`serve`)."""
+    """Runs ``tree`` on the tabletop of ``args.robot``; with --view inside a browser session that stays open
+    after the run (returned in the list, for :func:`serve`)."""
     from besman.trees.tabletop import run_on_tabletop, summary
 
+    seed = getattr(args, "seed", None)
     if not args.view:
-        return run_on_tabletop(tree, values, seed=getattr(args, "seed", None), log=log), []
+        return run_on_tabletop(tree, values, seed=seed, log=log, robot=args.robot), []
     from besman.trees.session import Session
 
     session = Session(
         tree,
         values,
-        seed=getattr(args, "seed", None),
+        seed=seed,
         speed=args.speed,
         viewer_options={"host": args.host, "port": args.port},
+        robot=args.robot,
     )
     print(
         f"viewer: {session.viewer.url} (the run goes at {args.speed:g}x real time)",

@@ -1,0 +1,155 @@
+"""Assembling a robot's model from its description: the model file, attached parts, mount, stage and tool
+frames, as one ``mujoco.MjSpec`` that worlds add furniture to before compiling.
+
+The steps, in order (each from a field of ``description.json``, see :mod:`besman.robots.description`):
+
+1. the model: a file beside the description, or a Menagerie file (:mod:`besman.robots.menagerie`);
+2. ``options``: simulation options set on the whole, before parts are attached: at attach the parent's
+   options win over a part's own (e.g. the Robotiq 2F-85's ``impratio=10`` and elliptic cones, which the
+   description therefore sets);
+3. ``attach``: each part's spec attached at a site of the model (``MjSpec.attach``), its names prefixed;
+   MuJoCo extends the keyframes with the part's joints and actuators (at their defaults);
+4. ``gravity_compensation``: every body of the robot (parts included) weightless to its actuators;
+5. ``mount``: the root bodies moved (turned by yaw about z, then shifted), so the robot stands where its
+   tabletop layout expects it;
+6. ``floor``: besman's stage (the floor, lights and sky of the shipped robots' ``scene.xml``) for a model
+   that has none, with a pedestal under a robot mounted above the floor;
+7. the arms' tool-centre points given as an offset on a body become sites, and ``exclude`` pairs become
+   contact exclusions.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from besman.robots import menagerie
+from besman.robots.description import DescriptionError, ModelSource, RobotDescription
+from besman.skills.errors import InputError
+
+CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}
+
+
+def model_path(source: ModelSource, folder: Path, where: str) -> Path:
+    """The file of a model source: beside the description (``folder``) or found in Menagerie."""
+    if source.menagerie:
+        return menagerie.find(source.file, where)
+    return folder / source.file
+
+
+def _spec(path: Path) -> mujoco.MjSpec:
+    try:
+        return mujoco.MjSpec.from_file(str(path))
+    except ValueError as error:
+        raise InputError(f"{path}: the model does not load: {error}") from None
+
+
+def _turn(yaw: float) -> np.ndarray:
+    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+
+
+def _mount(spec: mujoco.MjSpec, position, yaw: float) -> None:
+    """Moves every root body (a child of the world body): turned by ``yaw`` about z, then shifted."""
+    turn = _turn(yaw)
+    rotation = np.empty(9)
+    mujoco.mju_quat2Mat(rotation, turn)
+    for body in spec.worldbody.bodies:
+        body.pos = rotation.reshape(3, 3) @ np.asarray(body.pos) + np.asarray(position)
+        turned = np.empty(4)
+        mujoco.mju_mulQuat(turned, turn, np.asarray(body.quat) / np.linalg.norm(body.quat))
+        body.quat = turned
+
+
+def add_stage(spec: mujoco.MjSpec) -> None:
+    """The floor, lights and sky of the shipped robots' ``scene.xml`` (MuJoCo Menagerie's stage)."""
+    spec.visual.headlight.diffuse = [0.6, 0.6, 0.6]
+    spec.visual.headlight.ambient = [0.3, 0.3, 0.3]
+    spec.visual.headlight.specular = [0.0, 0.0, 0.0]
+    spec.visual.rgba.haze = [0.15, 0.25, 0.35, 1.0]
+    spec.visual.global_.azimuth, spec.visual.global_.elevation = 150, -20
+    spec.visual.global_.offwidth, spec.visual.global_.offheight = 1280, 960
+    spec.add_texture(
+        type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+        builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
+        rgb1=[0.3, 0.5, 0.7],
+        rgb2=[0, 0, 0],
+        width=512,
+        height=3072,
+    )
+    spec.add_texture(
+        name="besman_groundplane",
+        type=mujoco.mjtTexture.mjTEXTURE_2D,
+        builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+        mark=mujoco.mjtMark.mjMARK_EDGE,
+        rgb1=[0.2, 0.3, 0.4],
+        rgb2=[0.1, 0.2, 0.3],
+        markrgb=[0.8, 0.8, 0.8],
+        width=300,
+        height=300,
+    )
+    material = spec.add_material(
+        name="besman_groundplane", texuniform=True, texrepeat=[5, 5], reflectance=0.2
+    )
+    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "besman_groundplane"
+    spec.worldbody.add_light(pos=[0, 0, 3.5], dir=[0, 0, -1], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
+    spec.worldbody.add_geom(
+        name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05], material="besman_groundplane"
+    )
+
+
+def build_spec(description: RobotDescription) -> mujoco.MjSpec:
+    """The robot's assembled, uncompiled model (see the module documentation)."""
+    where = str(description.file)
+    spec = _spec(model_path(description.model, description.folder, f"{where}.model"))
+    for name, value in description.options.items():
+        if name == "cone":
+            if value not in CONES:
+                raise DescriptionError(f"{where}.options.cone: one of {', '.join(CONES)}, got {value!r}")
+            spec.option.cone = CONES[value]
+        elif not isinstance(value, int | float) or isinstance(value, bool) or not value > 0:
+            raise DescriptionError(f"{where}.options.{name}: expected a positive number, got {value!r}")
+        else:
+            setattr(spec.option, name, float(value))
+    for index, part in enumerate(description.attach):
+        part_where = f"{where}.attach[{index}]"
+        child = _spec(model_path(part.model, description.folder, f"{part_where}.model"))
+        site = spec.site(part.site)
+        if site is None:
+            raise DescriptionError(f"{part_where}.site: the model has no site {part.site!r}")
+        spec.attach(child, site=site, prefix=part.prefix)
+    if description.gravity_compensation:
+        for body in spec.worldbody.find_all(mujoco.mjtObj.mjOBJ_BODY):
+            body.gravcomp = 1.0
+    if description.mount is not None:
+        _mount(spec, description.mount.position, description.mount.yaw)
+    if description.floor:
+        add_stage(spec)
+        if description.mount is not None and description.mount.position[2] > 0:
+            # A raised robot stands on a pedestal (drawn only: nothing the robot does reaches below its base);
+            # cameras look at its arm, not at the pedestal.
+            x, y, z = description.mount.position
+            spec.stat.center = [x + 0.2, y, z + 0.2]
+            spec.stat.extent = 1.2
+            spec.worldbody.add_geom(
+                name="pedestal",
+                type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                pos=[x, y, z / 2],
+                size=[0.09, z / 2, 0],
+                rgba=[0.3, 0.3, 0.32, 1],
+                contype=0,
+                conaffinity=0,
+            )
+    for arm in description.arms.values():
+        tcp = arm.tcp
+        if tcp.body is None:
+            continue
+        body = spec.body(tcp.body)
+        if body is None:
+            raise DescriptionError(f"{where}.arms.{arm.name}.tcp.body: the model has no body {tcp.body!r}")
+        body.add_site(name=tcp.site, pos=list(tcp.position), quat=list(tcp.quaternion))
+    for first, second in description.exclude:
+        spec.add_exclude(bodyname1=first, bodyname2=second)
+    return spec

@@ -1,0 +1,86 @@
+"""A gripper compiled against a model: opening in metres, whatever its actuator takes as command.
+
+Grippers differ in what their actuator's command means: AILA's position actuator takes the opening of each
+finger in metres, the Robotiq 2F-85's takes 0 (open) to 255 (closed) on a tendon over two driver joints.
+Skills speak only of the opening - metres per finger, half the aperture between the pads - and the
+description's table of matching openings and commands (measured on the model, see each robot's README)
+translates, piecewise linearly, in both directions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from besman.robots.description import JointLimitSpec
+
+
+@dataclass(frozen=True, eq=False)
+class Gripper:
+    """An arm's gripper in a compiled model.
+
+    Attributes:
+        group: the fingers' joint group (their velocities tell when the fingers have settled).
+        actuator: index of the actuator in ``MjData.ctrl``.
+        opening, command: the description's matching table, sorted by opening (both read-only).
+        open: the opening that grasps and releases (m per finger).
+        pads: geom ids of each side's pads (a grasp needs both sides touching).
+        limits: the opening's velocity, acceleration and jerk limits (m/s^k per finger).
+    """
+
+    group: str
+    actuator: int
+    opening: np.ndarray
+    command: np.ndarray
+    open: float
+    pads: tuple[np.ndarray, np.ndarray]
+    limits: JointLimitSpec
+
+    @property
+    def lower(self) -> float:
+        """The smallest opening the gripper is commanded to (m per finger)."""
+        return float(self.opening[0])
+
+    @property
+    def upper(self) -> float:
+        """The largest opening (m per finger)."""
+        return float(self.opening[-1])
+
+    def command_for(self, opening):
+        """The actuator command(s) that hold the fingers at ``opening`` (clipped to the table's range)."""
+        return np.interp(opening, self.opening, self.command)
+
+    def opening_for(self, command):
+        """The opening(s) that the actuator command(s) ``command`` hold."""
+        order = np.argsort(self.command)
+        return np.interp(command, self.command[order], self.opening[order])
+
+
+def measure_openings(robot, arm: str | None, commands, settle: float = 3.0) -> np.ndarray:
+    """The opening (m per finger) that each actuator command holds with nothing in the hand: from the
+    robot's home keyframe the command is applied for ``settle`` s of simulated time, then the gap between
+    the inner faces of the two sides' pads (box geoms), along the tool frame's closing (y) axis, is halved.
+    This is how each robot's opening/command table is made (its README cites the run)."""
+    import mujoco
+
+    arm = robot.arm(arm)
+    gripper, model = arm.gripper, robot.model
+    if gripper is None:
+        raise ValueError(f"robot {robot.name!r}: arm {arm.name!r} has no gripper")
+    if any((model.geom_type[side] != mujoco.mjtGeom.mjGEOM_BOX).any() for side in gripper.pads):
+        raise ValueError(f"robot {robot.name!r}: measuring the opening needs box-shaped pads")
+    data = mujoco.MjData(model)
+    openings = []
+    for command in np.atleast_1d(commands):
+        robot.reset(data)
+        data.ctrl[gripper.actuator] = command
+        for _ in range(round(settle / model.opt.timestep)):
+            mujoco.mj_step(model, data)
+        closing = data.site(arm.tcp).xmat.reshape(3, 3)[:, 1]
+        centres = [data.geom_xpos[side] @ closing for side in gripper.pads]
+        halves = [model.geom_size[side][:, 1] for side in gripper.pads]
+        high, low = (0, 1) if centres[0].mean() > centres[1].mean() else (1, 0)
+        gap = (centres[high] - halves[high]).min() - (centres[low] + halves[low]).max()
+        openings.append(gap / 2)
+    return np.array(openings)

@@ -1,0 +1,172 @@
+"""The UR5e with a Robotiq 2F-85: MuJoCo Menagerie's models assembled from the description, the gripper's
+opening table re-measured, and the same demo trees as on AILA, within the arm's limits."""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import run_cli
+
+import besman.robots as robots
+from besman.robots import menagerie
+from besman.robots.description import DescriptionError
+from besman.robots.gripper import measure_openings
+from besman.sim.executor import limit_violations
+from besman.sim.pick_place import pick_place_bounds
+from besman.trees.gallery import prepare_demo, sort_places
+
+
+@pytest.fixture(scope="module")
+def ur5e():
+    return robots.load("ur5e")
+
+
+def test_the_ur5e_is_menageries_arm_with_the_gripper_attached_at_its_flange(ur5e):
+    model = ur5e.model
+    arm = ur5e.arm()
+    assert arm.name == "arm" and arm.groups == ("arm",) and arm.tcp == "gripper/pinch"
+    assert ur5e.group("arm").joints[0] == "shoulder_pan_joint" and model.nu == 7
+    assert model.body("gripper/base_mount").parentid == model.body("wrist_3_link").id
+    assert model.opt.impratio == 10 and model.opt.cone == 1  # the 2F-85's own options, kept
+    data = ur5e.make_data()
+    pinch = data.site("gripper/pinch")
+    # Mounted on its pedestal facing +x: at home the hand points down, 0.49 m in front of the base.
+    np.testing.assert_allclose(pinch.xpos, [0.492, 0.134, 1.112], atol=1e-3)
+    np.testing.assert_allclose(pinch.xmat.reshape(3, 3)[:, 2], [0, 0, -1], atol=1e-5)
+    assert model.body_gravcomp[model.body("wrist_3_link").id] == 1.0
+
+
+def test_the_grippers_opening_table_is_what_the_model_does(ur5e):
+    """Independent of the table's numbers: commands between its rows, run in the simulation, open the
+    fingers as far as the table interpolates (the 4-bar linkage is close to linear in the command)."""
+    gripper = ur5e.arm().gripper
+    commands = np.array([7.5, 100.0, 187.5, 232.5])
+    measured = measure_openings(ur5e, None, commands)
+    np.testing.assert_allclose(gripper.opening_for(commands), measured, atol=3e-4)
+    np.testing.assert_allclose(gripper.command_for(gripper.opening_for(commands)), commands)
+    assert gripper.upper == pytest.approx(0.0425, abs=5e-4)  # the 85 mm stroke, per finger
+
+
+def test_menagerie_models_are_found_under_menagerie_root_first(tmp_path, monkeypatch):
+    shipped = menagerie.find("universal_robots_ur5e/ur5e.xml", "test")
+    copy = tmp_path / "universal_robots_ur5e"
+    shutil.copytree(shipped.parent, copy)
+    monkeypatch.setenv(menagerie.ENVIRONMENT, str(tmp_path))
+    assert menagerie.find("universal_robots_ur5e/ur5e.xml", "test") == copy / "ur5e.xml"
+    with pytest.raises(DescriptionError, match=r"franka_fr3/fr3.xml' not found .*MENAGERIE_ROOT"):
+        menagerie.find("franka_fr3/fr3.xml", "desc.json.model")
+    with pytest.raises(DescriptionError, match="must be a path inside Menagerie"):
+        menagerie.find("../etc/passwd", "desc.json.model")
+
+
+def test_bad_arm_and_gripper_descriptions_name_the_field(tmp_path):
+    description = json.loads((robots.describe("ur5e").file).read_text())
+    cases = [
+        (
+            ("arms", "arm", "tcp", "site"),
+            "gripper/nose",
+            "arms.arm.tcp: the model has no site 'gripper/nose'",
+        ),
+        (("arms", "arm", "gripper", "open"), 0.2, "arms.arm.gripper.open: must lie in the opening's range"),
+        (("arms", "arm", "gripper", "command"), [0, 1], "opening and command must be matching lists"),
+        (("arms", "arm", "gripper", "pads"), [["gripper/right_pad1"]], "expected two lists of geom names"),
+        (
+            ("arms", "arm", "gripper", "actuator"),
+            "thumb",
+            "gripper.actuator: the model has no actuator 'thumb'",
+        ),
+        (("arms", "arm", "groups"), ["wings"], "arms.arm.groups: no group 'wings'"),
+        (("attach",), [{"model": {"menagerie": "nowhere/x.xml"}, "site": "a", "prefix": "p/"}], "not found"),
+        (("mount", "position"), [0, 0], "mount.position: expected a list of 3 finite numbers"),
+        (("tabletop", "objects", "x"), [0.9, 1.2], "tabletop.objects: the area must lie on the table"),
+        (("options", "cone"), "round", "options.cone: one of pyramidal, elliptic"),
+    ]
+    for path, value, message in cases:
+        changed = json.loads(json.dumps(description))
+        place = changed
+        for key in path[:-1]:
+            place = place[key]
+        place[path[-1]] = value
+        folder = tmp_path / "_".join(path)
+        folder.mkdir()
+        (folder / "description.json").write_text(json.dumps(changed))
+        with pytest.raises(DescriptionError, match=message) as error:
+            robots.load(str(folder))
+        assert str(folder / "description.json") in str(error.value)
+
+
+def test_tasks_show_the_pick_and_place_box_of_each_robot(capsys):
+    code, out, _ = run_cli(capsys, "robots", "show", "ur5e", "--json")
+    table = json.loads(out)
+    assert code == 0 and table["arms"]["arm"]["gripper"]["actuator"] == "gripper/fingers_actuator"
+    bounds = pick_place_bounds("ur5e")
+    assert bounds.low == (0.35, -0.10, 0.32, -0.45) and bounds.high == (0.52, 0.05, 0.49, -0.31)
+
+
+def _run(name: str, seed: int) -> tuple[dict, list[str]]:
+    prepared = prepare_demo(name, seed, {"robot": "ur5e"})
+    summary = prepared.judge(prepared.runner.run())
+    executor = prepared.runner.executor
+    return summary, limit_violations(executor.log, executor)
+
+
+@pytest.mark.slow
+def test_grasp_then_place_on_the_ur5e_ten_of_ten_within_its_limits():
+    """The issue's acceptance on seeds no other test or tuning used: every box within 2 cm of its target,
+    every commanded motion of every episode within the UR5e's velocity, acceleration and jerk limits."""
+    for seed in range(1000, 1010):
+        summary, violations = _run("grasp-then-place", seed)
+        assert summary["success"] and summary["placement_error_m"] <= 0.02, (seed, summary["message"])
+        assert violations == [], (seed, violations)
+
+
+@pytest.mark.slow
+def test_sort_on_the_ur5e_ten_of_ten_within_its_limits():
+    """Three boxes to their places on the UR5e's shelf, one taken out of the hand each time and grasped
+    again: 10/10 on unused seeds, every box within 2 cm, every command within the limits."""
+    places = sort_places("ur5e")
+    for seed in range(1000, 1010):
+        summary, violations = _run("sort", seed)
+        assert summary["success"], (seed, summary["status"], summary["message"])
+        assert summary["slipped"] in places and max(summary["placement_errors_m"].values()) <= 0.02
+        assert violations == [], (seed, violations)
+
+
+@pytest.mark.slow
+def test_docs_robots_page_brings_a_menagerie_arm_as_it_says(capsys, tmp_path, monkeypatch):
+    """docs/robots.md, done as written: its description into a folder, then every command of its steps (run
+    from a folder holding the examples, as in the source checkout), the measured gripper table pasted in
+    before the runs."""
+    import re
+    import shlex
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "robots.md").read_text()
+    description = re.search(r"<!-- description -->\n```json\n(.*?)```", page, re.S).group(1)
+    steps = re.search(r"<!-- steps -->\n```bash\n(.*?)```", page, re.S).group(1)
+    folder = tmp_path / "my_arm"
+    folder.mkdir()
+    (folder / "description.json").write_text(description)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "examples").symlink_to(Path(__file__).resolve().parents[1] / "examples")
+    for line in steps.splitlines():
+        argv = shlex.split(line.split("#")[0])
+        assert argv[0] == "besman"
+        if argv[1:3] == ["robots", "render"]:
+            argv[-1] = str(tmp_path / "my_arm.png")
+        code, out, err = run_cli(capsys, *argv[1:])
+        assert code == 0, (line, err)
+        if argv[1:3] == ["robots", "gripper"]:
+            table = json.loads(out)
+            written = json.loads((folder / "description.json").read_text())
+            written["arms"]["arm"]["gripper"].update(table)
+            (folder / "description.json").write_text(json.dumps(written))
+            shipped = robots.load("ur5e").arm().gripper  # the same gripper: the same table
+            np.testing.assert_allclose(table["opening"], shipped.opening[::-1], atol=1e-4)
+        if "--json" in argv:
+            summary = json.loads(out)
+            assert summary["success"] and summary["robot"] == "./my_arm", summary
+        if argv[1] == "run":
+            assert out.startswith("SUCCESS"), out
+    assert (tmp_path / "my_arm.png").read_bytes()[:4] == b"\x89PNG"
