@@ -47,6 +47,7 @@ import numpy as np
 from scipy.stats import qmc
 from tqdm import tqdm
 
+import besman.robots as robots
 from besman.learning.demonstration import Demonstration, DemonstrationError, load
 from besman.learning.imitation import HAND_MARKERS, imitate
 from besman.learning.labelling import DemonstrationSegment, cluster, ground_truth_segments, label_few_shot
@@ -70,8 +71,6 @@ from besman.skills.storage import read_json, sha256, write_atomically
 SCHEMA_VERSION = 1
 KIND = "besman-learn"
 SUFFIXES = (".tsv", ".csv", ".npz")
-ROBOTS = ("aila",)  # robots with the pick-and-place world the blocks are refined in
-TASK = "pick-place/aila"
 CLUSTERED_ROLES = {"reach": "block4", "carry": "block5", "return": "block6"}
 EXAMPLE_ROLES = {"reach": "approach_right", "carry": "move_obj_shelf", "return": "move_to_rest_down"}
 
@@ -116,9 +115,15 @@ class LearnSettings:
         return {**(EXAMPLE_ROLES if self.examples else CLUSTERED_ROLES), **given}
 
     def check(self) -> None:
-        if self.robot not in ROBOTS:
+        try:
+            robot = robots.describe(self.robot)
+        except BesmanError as error:
+            raise LearnError(f"robot: {error}") from None
+        arms = list(robot.arms.values())
+        if robot.tabletop is None or not arms or arms[0].gripper is None:
             raise LearnError(
-                f"robot {self.robot!r}: learning runs on {', '.join(ROBOTS)} (its pick-and-place world)"
+                f"robot {self.robot!r}: learning refines the blocks in the robot's tabletop world, which "
+                "needs a tabletop layout and a first arm with a gripper in its description"
             )
         for name, low in (("tasks", 2), ("budget", 1), ("n_blocks", 3), ("n_weights", 2)):
             if getattr(self, name) < low:
@@ -367,9 +372,9 @@ class _Run:
                 ]
                 imitate(segments, name=block).save(path)
             imitated[block] = MovementPrimitive.load(path)
-        world = tabletop_world()
+        world = tabletop_world(robot=self.settings.robot)
         arm = Executor(world).arm
-        starts = {block: prepare(world, block, _centre(block)) for block in BLOCKS}
+        starts = {block: prepare(world, block, _centre(block, world)) for block in BLOCKS}
         mapping = fit_workspace_map(
             imitated["reach"].dmp.position.goal,
             imitated["carry"].dmp.position.goal,
@@ -396,7 +401,7 @@ class _Run:
         with self.bar(total, "refining", "task") as tasks_bar:
             tasks_bar.update(done)
             for index, block in enumerate(BLOCKS):
-                bounds = block_bounds(block)
+                bounds = block_bounds(block, settings.robot)
                 unit = qmc.LatinHypercube(d=len(bounds.names), seed=settings.seed * 101 + index).random(
                     settings.tasks
                 )
@@ -406,7 +411,9 @@ class _Run:
                 for k, tau in enumerate(taus):
                     path = folder / f"{block}-{k}.json"
                     if not path.is_file():
-                        task = task or BlockTask(BlockTaskConfig(block, str(shapes[block])))
+                        task = task or BlockTask(
+                            BlockTaskConfig(block, str(shapes[block]), robot=settings.robot)
+                        )
                         with self.bar(
                             settings.budget + 1, f"{block} {k + 1}/{settings.tasks}", "rollout"
                         ) as bar:
@@ -434,10 +441,10 @@ class _Run:
                 prototype,
                 np.array([run["tau"] for run in runs]),
                 np.array([run["theta"] for run in runs]),
-                block_bounds(block),
+                block_bounds(block, self.settings.robot),
                 prior_spread=np.where(_forcing_weights(prototype), self.settings.spread, 0.0),
                 seed=self.settings.seed,
-                task=TASK,
+                task=f"pick-place/{robot_name(self.settings.robot)}",
                 provenance={
                     "learner": "besman.learning.pipeline.learn",
                     "robot": self.settings.robot,
@@ -558,8 +565,13 @@ def _longest_run(
     return best
 
 
-def _centre(block: str) -> np.ndarray:
-    bounds = block_bounds(block)
+def robot_name(robot: str) -> str:
+    """The name a robot (a shipped name or a folder) gives itself in its description."""
+    return robots.describe(robot).name
+
+
+def _centre(block: str, world) -> np.ndarray:
+    bounds = block_bounds(block, world.layout)
     return (np.asarray(bounds.low) + np.asarray(bounds.high)) / 2
 
 

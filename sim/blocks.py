@@ -1,4 +1,5 @@
-"""The building blocks of AILA's pick and place, each simulated on its own: reach, carry and return.
+"""The building blocks of a robot's pick and place (AILA's by default), each simulated on its own: reach,
+carry and return.
 
 Refining one block by policy search needs rollouts of that block only, from where the task stands when the
 block begins. :func:`prepare` gets there once per task tau with the planned (inverse-kinematics) motions of
@@ -26,12 +27,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from besman.robots.description import TabletopLayout
 from besman.sim.arm import Arm
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
 from besman.sim.executor import Executor
 from besman.sim.manipulation import DEFAULT_PLAN, PickPlacePlan, PlanningError, plan_pick, plan_place
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
-from besman.sim.pick_place import LIFT_HEIGHT, PICK_PLACE_BOUNDS, settle_and_measure
+from besman.sim.pick_place import LIFT_HEIGHT, pick_place_bounds, settle_and_measure
 from besman.sim.primitives import shaped
 from besman.sim.world import DEFAULT_BOX, World, tabletop_world
 from besman.skills import MovementPrimitive
@@ -52,23 +54,26 @@ PATH_STRIDE = 5  # control cycles between the hand positions that measure path l
 COLLISION_STRIDE = 10  # control cycles between the configurations checked for collisions
 
 
-def block_bounds(block: str) -> TaskBounds:
-    """The box of a block's tau: its columns of the pick-and-place bounds."""
+def block_bounds(block: str, robot: str | TabletopLayout = "aila") -> TaskBounds:
+    """The box of a block's tau on ``robot`` (a name, folder or tabletop layout): its columns of the robot's
+    pick-and-place bounds."""
     check_block(block)
-    columns = [PICK_PLACE_BOUNDS.names.index(name) for name in BLOCK_PARAMETERS[block]]
+    bounds = pick_place_bounds(robot)
+    columns = [bounds.names.index(name) for name in BLOCK_PARAMETERS[block]]
     return TaskBounds(
         BLOCK_PARAMETERS[block],
-        tuple(PICK_PLACE_BOUNDS.low[c] for c in columns),
-        tuple(PICK_PLACE_BOUNDS.high[c] for c in columns),
+        tuple(bounds.low[c] for c in columns),
+        tuple(bounds.high[c] for c in columns),
     )
 
 
-def full_tau(block: str, tau) -> np.ndarray:
+def full_tau(block: str, tau, robot: str | TabletopLayout = "aila") -> np.ndarray:
     """The pick-and-place tau of a block's tau; the parameters it does not use sit at the bounds' centre."""
-    tau = block_bounds(block).check(tau)[0]
-    full = (np.asarray(PICK_PLACE_BOUNDS.low) + np.asarray(PICK_PLACE_BOUNDS.high)) / 2
+    tau = block_bounds(block, robot).check(tau)[0]
+    bounds = pick_place_bounds(robot)
+    full = (np.asarray(bounds.low) + np.asarray(bounds.high)) / 2
     for value, name in zip(tau, BLOCK_PARAMETERS[block], strict=True):
-        full[PICK_PLACE_BOUNDS.names.index(name)] = value
+        full[bounds.names.index(name)] = value
     return full
 
 
@@ -164,7 +169,7 @@ def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -
     """Brings ``world`` to where ``block`` begins for its ``tau`` with the planned motions before it (from
     the robot's home) and plans the block's end points and what follows it. Raises
     :class:`~besman.sim.manipulation.PlanningError` if that cannot be done."""
-    full = full_tau(block, tau)
+    full = full_tau(block, tau, world.layout)
     object_xy, place_xy = full[:2], full[2:]
     item = DEFAULT_BOX
     world.reset()
@@ -262,6 +267,7 @@ class BlockTaskConfig:
     block: str
     shape: str
     reward: Reward = Reward()
+    robot: str = "aila"
 
     def build(self) -> BlockTask:
         return BlockTask(self)
@@ -274,9 +280,9 @@ class BlockTask:
     def __init__(self, config: BlockTaskConfig) -> None:
         check_block(config.block)
         self.config = config
-        self.bounds = block_bounds(config.block)
+        self.bounds = block_bounds(config.block, config.robot)
         self.shape = MovementPrimitive.load(config.shape)
-        self.world = tabletop_world()
+        self.world = tabletop_world(robot=config.robot)
         self._starts: dict[tuple[float, ...], BlockStart] = {}
 
     def start(self, tau) -> BlockStart:

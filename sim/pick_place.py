@@ -32,6 +32,7 @@ import mujoco
 import numpy as np
 
 import besman.robots as robots
+from besman.robots.description import TabletopLayout
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.manipulation import PickPlacePlan, PlanningError, plan_pick, plan_place
@@ -42,9 +43,10 @@ from besman.skills.tasks import TaskBounds
 from besman.skills.validation import finite_array
 
 
-def pick_place_bounds(robot: str = "aila") -> TaskBounds:
-    """The box of tau for ``robot``: its tabletop layout's object area (table) and place area (shelf)."""
-    layout = robots.describe(robot).tabletop
+def pick_place_bounds(robot: str | TabletopLayout = "aila") -> TaskBounds:
+    """The box of tau for ``robot`` (a name, a robot folder or its tabletop layout): its layout's object area
+    (table) and place area (shelf)."""
+    layout = robot if isinstance(robot, TabletopLayout) else robots.describe(robot).tabletop
     if layout is None:
         raise InputError(f"robot {robot!r} has no tabletop layout: it cannot pick and place")
     (ox, oy), (px, py) = layout.objects, layout.places

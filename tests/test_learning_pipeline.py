@@ -192,8 +192,10 @@ def test_a_pool_for_another_robot_or_other_settings_is_refused_and_kept(two_reco
     with pytest.raises(LearnError, match="other recordings or settings"):
         learn(two_recordings, out, progress=False)
     assert _snapshot(out) == before
-    with pytest.raises(LearnError, match=r"robot 'pa10': learning runs on aila"):
+    with pytest.raises(LearnError, match=r"robot 'pa10': learning refines the blocks in the robot's tabletop"):
         learn(two_recordings, out, LearnSettings(robot="pa10"), progress=False)
+    with pytest.raises(LearnError, match=r"robot: unknown robot 'r2d2'; available: aila, pa10, ur5e"):
+        learn(two_recordings, out, LearnSettings(robot="r2d2"), progress=False)
 
 
 def test_roles_that_name_no_label_are_refused_before_any_work(

@@ -34,6 +34,7 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
     summary = json.loads(capsys.readouterr().out)
     assert code == 0
     assert set(summary) == {
+        "success",
         "status",
         "placement_error_m",
         "box_position",
@@ -50,7 +51,7 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
     assert summary["placement_error_m"] == pytest.approx(
         np.linalg.norm(final_box[:2] - [0.50, -0.40]), abs=1e-4
     )
-    assert summary["placement_error_m"] < 0.02
+    assert summary["placement_error_m"] < 0.02 and summary["success"]
     assert result["ticks"] == summary["ticks"] == len(records)
     assert records[-1]["time"] == pytest.approx(summary["sim_time_s"], abs=0.02)
     writes = [change["key"] for record in records for change in record["blackboard"]]
@@ -80,6 +81,15 @@ def test_tasks_show_prints_the_bounds(capsys):
     assert main(["tasks", "show", "throwing", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["bounds"] == {"x": [-7.0, -1.0], "y": [-5.0, 1.0]}
     assert main(["tasks", "show", "juggling"]) == 2
+    assert "unknown task 'juggling'; tasks: pick-place, throwing, throwing-hardware" in capsys.readouterr().err
+    assert main(["tasks"]) == 0
+    assert [line.split("\t")[0] for line in capsys.readouterr().out.splitlines()] == [
+        "pick-place",
+        "throwing",
+        "throwing-hardware",
+    ]
+    assert main(["tasks", "show", "throwing", "--robot", "ur5e"]) == 2
+    assert "task throwing does not run on 'ur5e'; it runs on: pa10" in capsys.readouterr().err
 
 
 def test_tree_show_and_render(capsys, tmp_path):

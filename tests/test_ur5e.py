@@ -103,6 +103,10 @@ def test_tasks_show_the_pick_and_place_box_of_each_robot(capsys):
     assert code == 0 and table["arms"]["arm"]["gripper"]["actuator"] == "gripper/fingers_actuator"
     bounds = pick_place_bounds("ur5e")
     assert bounds.low == (0.35, -0.10, 0.32, -0.45) and bounds.high == (0.52, 0.05, 0.49, -0.31)
+    code, out, _ = run_cli(capsys, "tasks", "show", "pick-place", "--robot", "ur5e", "--json")
+    shown = json.loads(out)
+    assert code == 0 and shown["robot"] == "ur5e" and shown["bounds"] == bounds.as_dict()
+    assert shown["layout"]["shelf"] == {"height": 0.9, "x": [0.15, 0.6], "y": [-0.55, -0.25]}
 
 
 def _run(name: str, seed: int) -> tuple[dict, list[str]]:

@@ -37,6 +37,7 @@ from besman.sim.disturbances import TakeFromHand
 from besman.sim.executor import Executor
 from besman.sim.pick_place import PLACE_TOLERANCE
 from besman.sim.proximity import ArmProximity, moved_geoms
+from besman.sim.tasks import one_hand_tabletop
 from besman.sim.world import GraspableObject, tabletop_world
 from besman.skills.errors import InputError
 from besman.trees.blackboard import set_task_values
@@ -77,12 +78,6 @@ class Demo:
     @property
     def path(self) -> Path:
         return EXAMPLES / self.tree
-
-
-def _one_hand_tabletop(robot: robots.RobotDescription) -> bool:
-    """A tabletop layout, and a first arm with a gripper."""
-    arms = list(robot.arms.values())
-    return robot.tabletop is not None and bool(arms) and arms[0].gripper is not None
 
 
 def _two_hand_tabletop(robot: robots.RobotDescription) -> bool:
@@ -376,7 +371,7 @@ DEMOS: dict[str, Demo] = {
             "grasp_then_place.yaml",
             _grasp_then_place,
             "aila",
-            _one_hand_tabletop,
+            one_hand_tabletop,
         ),
         Demo(
             "sort",
@@ -385,7 +380,7 @@ DEMOS: dict[str, Demo] = {
             "sort.yaml",
             _sort,
             "aila",
-            _one_hand_tabletop,
+            one_hand_tabletop,
         ),
         Demo(
             "handover",

@@ -6,25 +6,26 @@ import argparse
 import json
 from pathlib import Path
 
-from besman.skills.errors import InputError
 
-TASKS = ("pick-place", "throwing", "throwing-hardware")
+def _tasks_list(args: argparse.Namespace) -> int:
+    from besman.sim.tasks import TASKS
+
+    for kind in TASKS.values():
+        print(f"{kind.name}\t{kind.title} (default robot: {kind.robot})")
+    return 0
 
 
 def _tasks_show(args: argparse.Namespace) -> int:
-    if args.name == "pick-place":
-        from besman.sim.pick_place import PICK_PLACE_BOUNDS as bounds
-    elif args.name in ("throwing", "throwing-hardware"):
-        from besman.sim.throwing import HARDWARE_BOUNDS, PAPER_BOUNDS
+    from besman.sim.tasks import task_kind
 
-        bounds = PAPER_BOUNDS if args.name == "throwing" else HARDWARE_BOUNDS
-    else:
-        raise InputError(f"unknown task {args.name!r}; tasks: {', '.join(TASKS)}")
+    facts = task_kind(args.name).describe(args.robot)  # unknown names and unfit robots are named
     if args.json:
-        print(json.dumps({"task": args.name, "bounds": bounds.as_dict()}, indent=2))
-    else:
-        for name, (low, high) in bounds.as_dict().items():
-            print(f"{name}\t[{low:g}, {high:g}]")
+        print(json.dumps(facts, indent=2))
+        return 0
+    print(f"{facts['task']} on {facts['robot']}: {facts['title']}")
+    print(f"success: {facts['success']}")
+    for name, (low, high) in facts["bounds"].items():
+        print(f"{name}\t[{low:g}, {high:g}]")
     return 0
 
 
@@ -49,10 +50,14 @@ def _experiment_throwing(args: argparse.Namespace) -> int:
 
 def register(commands) -> None:
     """Adds this module's commands to the parser's subcommands."""
-    tasks = commands.add_parser("tasks", help="the tasks' parameters")
-    task_commands = tasks.add_subparsers(dest="tasks_command", metavar="ACTION", required=True)
-    task_show = task_commands.add_parser("show", help=f"a task's parameter bounds ({', '.join(TASKS)})")
+    tasks = commands.add_parser("tasks", help="the task registry: list the tasks, show one on a robot")
+    tasks.set_defaults(handler=_tasks_list)
+    task_commands = tasks.add_subparsers(dest="tasks_command", metavar="ACTION")
+    task_show = task_commands.add_parser(
+        "show", help="a task on a robot: what it does, success, tau's box (and the tabletop layout)"
+    )
     task_show.add_argument("name")
+    task_show.add_argument("--robot", default=None, help="the robot (default: the task's own)")
     task_show.add_argument("--json", action="store_true")
     task_show.set_defaults(handler=_tasks_show)
 
