@@ -31,9 +31,20 @@ from besman.robots.description import TabletopLayout
 from besman.sim.arm import Arm
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
 from besman.sim.executor import Executor
-from besman.sim.manipulation import DEFAULT_PLAN, PickPlacePlan, PlanningError, plan_pick, plan_place
-from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
-from besman.sim.pick_place import LIFT_HEIGHT, pick_place_bounds, settle_and_measure
+from besman.sim.manipulation import (
+    DEFAULT_PLAN,
+    PICK_STEPS,
+    PLACE_STEPS,
+    PickMotions,
+    PickPlacePlan,
+    PlaceMotions,
+    PlanningError,
+    Step,
+    plan_pick,
+    plan_place,
+)
+from besman.sim.motions import FollowPrimitive, MotionStatus
+from besman.sim.pick_place import LIFT_HEIGHT, pick_place_bounds, settle_and_measure, step_motion
 from besman.sim.primitives import shaped
 from besman.sim.world import DEFAULT_BOX, World, tabletop_world
 from besman.skills import MovementPrimitive
@@ -129,13 +140,13 @@ class BlockOutcome:
 @dataclass(frozen=True, eq=False)
 class BlockStart:
     """Where a block begins for one tau: the simulation state, the arm's configurations at the block's
-    planned start and end, and the planned motions after it (primitives, or "grasp"/"release")."""
+    planned start and end, and the pick-and-place steps after it, each with its planned motions."""
 
     block: str
     state: np.ndarray
     start: np.ndarray
     goal: np.ndarray
-    after: tuple[MovementPrimitive | str, ...]
+    after: tuple[tuple[Step, PickMotions | PlaceMotions], ...]
     place_xy: np.ndarray
 
 
@@ -150,19 +161,19 @@ def restore(world: World, state: np.ndarray) -> None:
     mujoco.mj_forward(world.model, world.data)
 
 
-def _motion(step: MovementPrimitive | str) -> Motion:
-    """A planned step as a motion: a primitive to follow, or "grasp" / "release" the box."""
-    if step == "grasp":
-        return GripperMotion("grasp", opening=0.0, expect_grasp=True, grasp_object=DEFAULT_BOX.name)
-    if step == "release":
-        return GripperMotion("release", opening=None)
-    return FollowPrimitive(step)
+def _run(executor: Executor, steps, planned, what: str) -> None:
+    """Runs pick-and-place ``steps`` with their ``planned`` motions; a failure is a planning error (the
+    planned motions before a block must work for the block to be tried)."""
+    for step in steps:
+        motion = executor.run(step_motion(step, planned, DEFAULT_BOX.name), timeout=TIMEOUT)
+        if motion.status is not MotionStatus.SUCCEEDED:
+            raise PlanningError(f"the planned {what} failed at {motion.name}: {motion.message}")
 
 
-def _run(executor: Executor, step: MovementPrimitive | str, what: str) -> None:
-    motion = executor.run(_motion(step), timeout=TIMEOUT)
-    if motion.status is not MotionStatus.SUCCEEDED:
-        raise PlanningError(f"the planned {what} failed at {motion.name}: {motion.message}")
+def _after(steps, name: str, planned) -> tuple:
+    """The steps after the one called ``name``, each with its planned motions."""
+    index = [step.name for step in steps].index(name)
+    return tuple((step, planned) for step in steps[index + 1 :])
 
 
 def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -> BlockStart:
@@ -178,7 +189,7 @@ def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -
     home = executor.position.copy()
     settings = executor.reference_settings
     pick = plan_pick(executor.arm, home, item, object_xy, plan, settings)
-    _run(executor, "release", "opening")
+    _run(executor, PICK_STEPS[:1], pick, "opening")
 
     def start(goal, after) -> BlockStart:
         return BlockStart(
@@ -190,15 +201,13 @@ def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -
             place_xy.copy(),
         )
 
-    if block == "reach":
-        return start(pick.approach.dmp.goal.copy(), (pick.descend, "grasp", pick.lift))
-    for step in (pick.approach, pick.descend, "grasp", pick.lift):
-        _run(executor, step, "grasp")
+    if block == "reach":  # it replaces the approach
+        return start(pick.approach.dmp.goal.copy(), _after(PICK_STEPS, "approach", pick))
+    _run(executor, PICK_STEPS[1:], pick, "grasp")
     put = plan_place(executor.arm, pick.lifted, item, place_xy, plan, settings)
-    if block == "carry":
-        return start(put.transport.dmp.goal.copy(), (put.place, "release", put.retreat))
-    for step in (put.transport, put.place, "release", put.retreat):
-        _run(executor, step, "placement")
+    if block == "carry":  # it replaces the transport
+        return start(put.transport.dmp.goal.copy(), _after(PLACE_STEPS, "transport", put))
+    _run(executor, PLACE_STEPS, put, "placement")
     return start(home, ())
 
 
@@ -229,8 +238,8 @@ def rollout(world: World, start: BlockStart, shape: MovementPrimitive) -> BlockO
     if start.block == "carry" and not executor.hand.holds(item.name):
         return BlockOutcome(False, "carry: the box slipped out of the hand", **measures)
     resting = world.surface("table").height + item.half_height
-    for step in start.after:
-        motion = executor.run(_motion(step), timeout=TIMEOUT)
+    for step, planned in start.after:
+        motion = executor.run(step_motion(step, planned, item.name), timeout=TIMEOUT)
         if motion.status is not MotionStatus.SUCCEEDED:
             return BlockOutcome(False, f"{motion.name} after the {start.block}: {motion.message}", **measures)
     if start.block == "reach":

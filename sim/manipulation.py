@@ -209,6 +209,43 @@ def deviation(arm: Arm, reference: Trajectory, start: np.ndarray, end: np.ndarra
 
 
 @dataclass(frozen=True)
+class Step:
+    """One step of pick and place - the sequence is written once, here, and the simulated task, the building
+    blocks that learning refines and the tree idioms all run it.
+
+    Attributes:
+        name: the step's name (motions, tree leaves and logs use it).
+        move: the planned primitive it follows (a field of :class:`PickMotions` or :class:`PlaceMotions`), or
+        gripper: what it does with the gripper instead: "open", "close" (a grasp of the object is required)
+            or "release".
+        holding: the object is in the hand when it starts and must stay there (a slip fails it; trees guard
+            it while it runs).
+    """
+
+    name: str
+    move: str | None = None
+    gripper: str | None = None
+    holding: bool = False
+
+
+# Grasp: open, move above the object, down around it, close on it, lift it (then check that it is held).
+PICK_STEPS = (
+    Step("open", gripper="open"),
+    Step("approach", move="approach"),
+    Step("descend", move="descend"),
+    Step("close", gripper="close"),
+    Step("lift", move="lift"),
+)
+# Place: carry it above the target, set it down, let go, move the hand up and away.
+PLACE_STEPS = (
+    Step("transport", move="transport", holding=True),
+    Step("set down", move="place", holding=True),
+    Step("release", gripper="release"),
+    Step("retreat", move="retreat"),
+)
+
+
+@dataclass(frozen=True)
 class PickMotions:
     """Approach (from the configuration it was planned from), descend and lift, and the configuration
     after it."""

@@ -11,11 +11,11 @@ layout. AILA's (:data:`PICK_PLACE_BOUNDS`):
 Both boxes lie where the right arm, turning the waist, reaches top-down grasps and the poses above them
 with every joint at least 5 % of its range away from its limits for some grasp yaw (scanned on a grid).
 
-The episode is a scripted sequence of joint-space movement primitives planned by
-:mod:`besman.sim.manipulation` and executed by the Ruckig executor: open the gripper, approach above the
-object, descend, grasp (close; a grasp is required), lift, transport above the place, place, release,
-retreat. theta tunes the plan (:class:`~besman.sim.manipulation.PickPlacePlan`); ``default_theta()`` is the
-hand-made plan.
+The episode is the pick-and-place sequence (:data:`~besman.sim.manipulation.PICK_STEPS` and
+``PLACE_STEPS``) of joint-space movement primitives planned by :mod:`besman.sim.manipulation` and executed
+by the Ruckig executor: open the gripper, approach above the object, descend, close (a grasp is required),
+lift, transport above the place, set down, release, retreat. theta tunes the plan
+(:class:`~besman.sim.manipulation.PickPlacePlan`); ``default_theta()`` is the hand-made plan.
 
 Success: the box was lifted at least 5 cm and carried in the hand until the release (not dropped), then
 stands upright (tilt < 10 deg) on the shelf within 2 cm of the place target. Metrics per episode: placement
@@ -35,7 +35,17 @@ import besman.robots as robots
 from besman.robots.description import TabletopLayout
 from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
 from besman.sim.executor import Executor, limit_violations
-from besman.sim.manipulation import PickPlacePlan, PlanningError, plan_pick, plan_place
+from besman.sim.manipulation import (
+    PICK_STEPS,
+    PLACE_STEPS,
+    PickMotions,
+    PickPlacePlan,
+    PlaceMotions,
+    PlanningError,
+    Step,
+    plan_pick,
+    plan_place,
+)
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
 from besman.sim.world import DEFAULT_BOX, GraspableObject, World, tabletop_world
 from besman.skills.errors import InputError
@@ -137,6 +147,15 @@ class PickPlaceTask:
         return Evaluation(rewards, details)
 
 
+def step_motion(step: Step, planned: PickMotions | PlaceMotions, item: str) -> Motion:
+    """The motion that runs a pick-and-place ``step``: the ``planned`` primitive it follows, or its gripper
+    action on the object ``item``."""
+    if step.move is not None:
+        return FollowPrimitive(getattr(planned, step.move), name=step.name)
+    closing = step.gripper == "close"
+    return GripperMotion(step.name, opening=0.0 if closing else None, expect_grasp=closing, grasp_object=item)
+
+
 def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: PickPlacePlan) -> PickPlaceDetail:
     """Resets ``world``, places the box at tau's object position, plans and runs the scripted sequence."""
     world.reset()
@@ -149,29 +168,18 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
         put = plan_place(executor.arm, pick.lifted, item, place_xy, plan, settings)
     except PlanningError as error:
         return _failure(world, "plan", str(error))
-    steps = [
-        GripperMotion("open", opening=None),
-        pick.approach,
-        pick.descend,
-        GripperMotion("grasp", opening=0.0, expect_grasp=True, grasp_object=item.name),
-        pick.lift,
-        put.transport,
-        put.place,
-        GripperMotion("release", opening=None),
-        put.retreat,
-    ]
     monitor = _BoxMonitor(world, item.name, executor)
-    for step in steps:
+    lifted = world.surface("table").height + item.half_height + LIFT_HEIGHT
+    for step, planned in [(step, pick) for step in PICK_STEPS] + [(step, put) for step in PLACE_STEPS]:
         # Primitives start where the previous motion left the robot.
-        motion = step if isinstance(step, Motion) else FollowPrimitive(step)
-        executor.run(motion, timeout=15.0, observe=monitor.update)
+        motion = executor.run(step_motion(step, planned, item.name), timeout=15.0, observe=monitor.update)
         if motion.status is not MotionStatus.SUCCEEDED:
-            return _failure(world, motion.name, motion.message, monitor)
-        if motion.name in ("lift", "transport", "place") and not executor.hand.holds(item.name):
-            return _failure(world, motion.name, "the box slipped out of the hand", monitor)
-        if motion.name == "lift":
-            if monitor.highest < world.surface("table").height + item.half_height + LIFT_HEIGHT:
-                return _failure(world, motion.name, "the box was not lifted", monitor)
+            return _failure(world, step.name, motion.message, monitor)
+        if (step.holding or step.name == "lift") and not executor.hand.holds(item.name):
+            return _failure(world, step.name, "the box slipped out of the hand", monitor)
+        if step.name == "lift":  # the grasp, checked
+            if monitor.highest < lifted:
+                return _failure(world, step.name, "the box was not lifted", monitor)
             monitor.grasped = True
     placed = settle_and_measure(world, item, place_xy, monitor.update)
     violations = tuple(limit_violations(executor.log, executor))

@@ -3,10 +3,11 @@
 Each subtree keeps its blackboard in one skill namespace; its planning leaf writes the primitives that its
 :class:`~besman.trees.leaves.ExecutePrimitive` leaves read, wired by the planning leaf's own role keys.
 
-- :func:`grasp` - perceive, plan, open, approach, descend, close on the object (a grasp is required), lift,
-  check the grasp; retried from fresh perception when it fails.
-- :func:`place` - plan, transport and set down while a guard checks that the object stays in the hand, open,
-  retreat, check that the object is at the target.
+- :func:`grasp` - perceive, plan, then pick and place's grasp steps (``PICK_STEPS`` of
+  :mod:`besman.sim.manipulation`: open, approach, descend, close on the object - a grasp is required - and
+  lift), check the grasp; retried from fresh perception when it fails.
+- :func:`place` - plan, then the place steps (``PLACE_STEPS``: transport and set down while a guard checks
+  that the object stays in the hand, release, retreat), check that the object is at the target.
 - :func:`return_home` - the learned return to the robot's home configuration.
 - :func:`grasp_then_place` - the two, retried: if the object slips out of the hand, the retry finds it not
   grasped and grasps it again where it now lies.
@@ -22,7 +23,7 @@ from typing import Any
 
 import py_trees
 
-from besman.sim.manipulation import PickPlacePlan
+from besman.sim.manipulation import PICK_STEPS, PLACE_STEPS, PickPlacePlan
 from besman.skills.errors import InputError
 from besman.trees.base import RoleBehaviour
 from besman.trees.conditions import ObjectAt, ObjectGrasped
@@ -64,11 +65,7 @@ def grasp(
                 arm=arm,
                 **_learned(pool, template, refine_above),
             ),
-            Gripper("open", action="open", arm=arm),
-            ExecutePrimitive("approach", remap={"primitive": primitives["approach"]}, arm=arm),
-            ExecutePrimitive("descend", remap={"primitive": primitives["descend"]}, arm=arm),
-            Gripper("close", action="close", expect_grasp=True, object=object, arm=arm),
-            ExecutePrimitive("lift", remap={"primitive": primitives["lift"]}, arm=arm),
+            *_step_leaves(PICK_STEPS, object, primitives, arm),
             ObjectGrasped("grasped?", object=object, arm=arm),
         ],
     )
@@ -119,10 +116,7 @@ def place(
                 arm=arm,
                 **_learned(pool, template, refine_above),
             ),
-            _while_holding("transport", object, primitives["transport"], arm),
-            _while_holding("set down", object, primitives["place"], arm),
-            Gripper("release", action="open", arm=arm),
-            ExecutePrimitive("retreat", remap={"primitive": primitives["retreat"]}, arm=arm),
+            *_step_leaves(PLACE_STEPS, object, primitives, arm),
             ObjectAt("placed?", object=object, **_wiring(ObjectAt, namespace, remap)),
         ],
     )
@@ -227,6 +221,23 @@ def _checked(subtree: str, remap: Mapping[str, str], planner: type[RoleBehaviour
 def _wiring(leaf: type[RoleBehaviour], namespace: str, remap: Mapping[str, str]) -> dict:
     """The namespace and the part of a subtree's remap that concerns ``leaf``'s roles."""
     return {"namespace": namespace, "remap": {role: key for role, key in remap.items() if role in leaf.roles}}
+
+
+def _step_leaves(steps, object: str, primitives: Mapping[str, str], arm: str | None) -> list:
+    """The leaves that run pick-and-place ``steps`` (:data:`~besman.sim.manipulation.PICK_STEPS`, ...) with
+    ``arm``: a gripper action, or the planning leaf's primitive (its blackboard key in ``primitives``, by
+    role), guarded while the object must stay in the hand."""
+    leaves = []
+    for step in steps:
+        if step.gripper is not None:
+            closing = step.gripper == "close"
+            grasp = {"expect_grasp": True, "object": object} if closing else {}
+            leaves.append(Gripper(step.name, action="close" if closing else "open", arm=arm, **grasp))
+        elif step.holding:
+            leaves.append(_while_holding(step.name, object, primitives[step.move], arm))
+        else:
+            leaves.append(ExecutePrimitive(step.name, remap={"primitive": primitives[step.move]}, arm=arm))
+    return leaves
 
 
 def _while_holding(
