@@ -19,7 +19,7 @@ from pathlib import Path
 import mujoco
 
 from besman.robots.render import save_png
-from besman.trees.gallery import demo
+from besman.trees.gallery import prepare_demo
 
 # demo -> (seed, fraction of the run's ticks at which to draw, camera: look-at, distance, azimuth, elevation)
 SHOTS = {
@@ -32,7 +32,7 @@ SHOTS = {
 
 def picture(name: str, out: Path) -> Path:
     seed, fraction, lookat, distance, azimuth, elevation = SHOTS[name]
-    prepared = demo(name).prepare(seed, {}, None)
+    prepared = prepare_demo(name, seed)
     world = prepared.runner.executor.world
     frames = []
 

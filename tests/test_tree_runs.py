@@ -81,7 +81,8 @@ def test_tasks_show_prints_the_bounds(capsys):
     assert main(["tasks", "show", "throwing", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["bounds"] == {"x": [-7.0, -1.0], "y": [-5.0, 1.0]}
     assert main(["tasks", "show", "juggling"]) == 2
-    assert "unknown task 'juggling'; tasks: pick-place, throwing, throwing-hardware" in capsys.readouterr().err
+    unknown = "unknown task 'juggling'; tasks: pick-place, throwing, throwing-hardware"
+    assert unknown in capsys.readouterr().err
     assert main(["tasks"]) == 0
     assert [line.split("\t")[0] for line in capsys.readouterr().out.splitlines()] == [
         "pick-place",

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from besman.sim.faults import FaultMonitor
-from besman.skills.errors import UnknownNameError
 from besman.sim.world import GraspableObject, tabletop_world, throwing_world
+from besman.skills.errors import UnknownNameError
 
 
 @pytest.fixture(scope="module")
