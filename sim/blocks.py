@@ -170,8 +170,14 @@ def _run(executor: Executor, steps, planned, what: str) -> None:
             raise PlanningError(f"the planned {what} failed at {motion.name}: {motion.message}")
 
 
-def _after(steps, name: str, planned) -> tuple:
-    """The steps after the one called ``name``, each with its planned motions."""
+# The step of pick and place that a learned block replaces, in its half of the sequence.
+REPLACED_STEPS = {"reach": (PICK_STEPS, "approach"), "carry": (PLACE_STEPS, "transport")}
+
+
+def steps_after(block: str, planned: PickMotions | PlaceMotions) -> tuple:
+    """The pick-and-place steps after the one ``block`` replaces ("reach" or "carry"), each with its
+    ``planned`` motions: what runs after the block to judge it."""
+    steps, name = REPLACED_STEPS[block]
     index = [step.name for step in steps].index(name)
     return tuple((step, planned) for step in steps[index + 1 :])
 
@@ -202,11 +208,11 @@ def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -
         )
 
     if block == "reach":  # it replaces the approach
-        return start(pick.approach.dmp.goal.copy(), _after(PICK_STEPS, "approach", pick))
+        return start(pick.approach.dmp.goal.copy(), steps_after(block, pick))
     _run(executor, PICK_STEPS[1:], pick, "grasp")
     put = plan_place(executor.arm, pick.lifted, item, place_xy, plan, settings)
     if block == "carry":  # it replaces the transport
-        return start(put.transport.dmp.goal.copy(), _after(PLACE_STEPS, "transport", put))
+        return start(put.transport.dmp.goal.copy(), steps_after(block, put))
     _run(executor, PLACE_STEPS, put, "placement")
     return start(home, ())
 

@@ -24,7 +24,7 @@ import numpy as np
 from py_trees.common import Access, Status
 
 from besman.learning.online import Refinement, refine_online, uncertainty
-from besman.sim.blocks import BlockStart, snapshot
+from besman.sim.blocks import BlockStart, snapshot, steps_after
 from besman.sim.manipulation import (
     DEFAULT_PLAN,
     PickPlacePlan,
@@ -115,9 +115,6 @@ class _Plan(SimulationBehaviour):
         """Where the hand goes, from the value of the ``source`` role."""
         raise NotImplementedError
 
-    def after(self, motions) -> tuple:
-        raise NotImplementedError
-
     def update(self) -> Status:
         executor = self.executor
         item = executor.world.objects.get(self.object)
@@ -158,7 +155,7 @@ class _Plan(SimulationBehaviour):
             snapshot(executor.world),
             executor.position.copy(),
             getattr(motions, self.outputs[0]).dmp.goal.copy(),
-            self.after(motions),
+            steps_after(self.block, motions),
             where,
         )
         self.refinement = refine_online(executor.world, start, template, tau)
@@ -224,9 +221,6 @@ class PlanGrasp(_Plan):
     def goal(self, source: np.ndarray, item: str) -> np.ndarray:
         return np.r_[source[:2] + self.offset, source[2]]
 
-    def after(self, motions) -> tuple:
-        return (motions.descend, "grasp", motions.lift)
-
 
 class PlanPlace(_Plan):
     """Plans transport, place and retreat to the ``target`` (x, y) from the current configuration."""
@@ -260,9 +254,6 @@ class PlanPlace(_Plan):
         return plan_place(
             executor.arm, executor.position, item, goal, self.plan, executor.reference_settings, shape, held
         )
-
-    def after(self, motions) -> tuple:
-        return (motions.place, "release", motions.retreat)
 
 
 class PlanReturn(SimulationBehaviour):
