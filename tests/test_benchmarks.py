@@ -129,8 +129,9 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings,
 
 @pytest.mark.slow
 def test_learned_benchmark_compares_the_three_trees_as_json():
-    report = run_benchmark("learned.py", "--count", "2")
-    assert report["benchmark"] == "learned" and report["count"] == 2
+    # One task (the README's 30 come from the full run): every tree, measure and target is computed as there.
+    report = run_benchmark("learned.py", "--count", "1")
+    assert report["benchmark"] == "learned" and report["count"] == 1 and report["robot"] == "aila"
     assert set(report["trees"]) == {"ik", "zero-shot", "refined"}
     for name, row in report["trees"].items():
         assert 0.0 <= row["success_rate"] <= 1.0
