@@ -278,7 +278,9 @@ def register(commands) -> None:
 
     run = commands.add_parser("run", help="run a tree file on a robot's tabletop (default: AILA's)")
     run.add_argument("file")
-    run.add_argument("--robot", default="aila", help="the robot (besman robots list; default: aila)")
+    run.add_argument(
+        "--robot", default="aila", help="a robot's name or folder (besman robots lists them; default: aila)"
+    )
     run.add_argument(
         "--set",
         action="append",
