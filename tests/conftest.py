@@ -22,22 +22,3 @@ def _in_a_temporary_directory(tmp_path, monkeypatch):
     """Every test runs in its own temporary folder: MuJoCo writes MUJOCO_LOG.TXT into the working directory
     on a warning (tests provoke faults on purpose), and nothing a test writes may land in the checkout."""
     monkeypatch.chdir(tmp_path)
-
-
-# The files whose slow tests take longest (measured: the full learn alone takes about 8 minutes), run first:
-# with the files spread over workers (-n auto --dist loadfile) the workers then finish together instead of
-# one starting the longest file last.
-LONGEST_FIRST = (
-    "test_learning_full.py",
-    "test_learning_pipeline.py",
-    "test_benchmarks.py",
-    "test_gallery.py",
-)
-
-
-def pytest_collection_modifyitems(config, items):
-    def rank(item) -> int:
-        name = Path(str(item.fspath)).name
-        return LONGEST_FIRST.index(name) if name in LONGEST_FIRST else len(LONGEST_FIRST)
-
-    items.sort(key=rank)  # stable: every file keeps its own order
