@@ -79,6 +79,15 @@ class Demo:
     def path(self) -> Path:
         return EXAMPLES / self.tree
 
+    def check_robot(self, robot: str | None) -> str:
+        """``robot`` (default: the demo's own) if the demo runs on it; otherwise an error naming the robots
+        it runs on, before any work."""
+        robot = robot or self.robot
+        if not self.fits(robots.describe(robot)):  # an unknown robot is refused with the list
+            fitting = [name for name in robots.available() if self.fits(robots.describe(name))]
+            raise InputError(f"demo {self.name} does not run on {robot!r}; it runs on: {', '.join(fitting)}")
+        return robot
+
 
 def _two_hand_tabletop(robot: robots.RobotDescription) -> bool:
     """A tabletop layout and two arms "right" and "left", each with a gripper."""
@@ -437,9 +446,5 @@ def prepare_demo(
     the demo does not fit is refused by name, before any work."""
     found = demo(name)
     options = dict(options or {})
-    robot = options.get("robot") or found.robot
-    if not found.fits(robots.describe(robot)):
-        fitting = [other for other in robots.available() if found.fits(robots.describe(other))]
-        raise InputError(f"demo {name} does not run on {robot!r}; robots it runs on: {', '.join(fitting)}")
-    options["robot"] = robot
+    robot = options["robot"] = found.check_robot(options.get("robot"))
     return replace(found.prepare(seed, options, observe), robot=robot)

@@ -155,7 +155,7 @@ def _demo(args: argparse.Namespace) -> int:
     chosen = demo(args.name)  # an unknown name is refused with the list, before any work
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",))
-    args.robot = _robot_for(chosen, args.robot)
+    args.robot = chosen.check_robot(args.robot)
     options = {"robot": args.robot}
     if args.target is not None:
         if chosen.name != "throw":
@@ -220,17 +220,6 @@ def _demo_outcome(summary: dict) -> str:
     if summary["failed_node"]:
         text += f"\nfailed at {summary['failed_node']}: {summary['message']}"
     return text
-
-
-def _robot_for(chosen, robot: str | None) -> str:
-    """The robot a demo runs on: ``--robot`` (refused by name if the demo does not fit it) or its own."""
-    import besman.robots as robots
-
-    robot = robot or chosen.robot
-    if not chosen.fits(robots.describe(robot)):  # an unknown robot is refused with the list
-        fitting = [name for name in robots.available() if chosen.fits(robots.describe(name))]
-        raise InputError(f"demo {chosen.name} does not run on {robot!r}; it runs on: {', '.join(fitting)}")
-    return robot
 
 
 def _grasp_then_place_demo(args: argparse.Namespace) -> int:
