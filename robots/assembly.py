@@ -3,7 +3,8 @@ frames, as one ``mujoco.MjSpec`` that worlds add furniture to before compiling.
 
 The steps, in order (each from a field of ``description.json``, see :mod:`besman.robots.description`):
 
-1. the model: a file beside the description, or a Menagerie file (:mod:`besman.robots.menagerie`);
+1. the model: a file beside the description, a Menagerie file (:mod:`besman.robots.menagerie`), or a file
+   an installed package ships (:mod:`besman.robots.packages`);
 2. ``options``: simulation options set on the whole, before parts are attached: at attach the parent's
    options win over a part's own (e.g. the Robotiq 2F-85's ``impratio=10`` and elliptic cones, which the
    description therefore sets);
@@ -15,7 +16,9 @@ The steps, in order (each from a field of ``description.json``, see :mod:`besman
 6. ``floor``: besman's stage (the floor, lights and sky of the shipped robots' ``scene.xml``) for a model
    that has none, with a pedestal under a robot mounted above the floor;
 7. the arms' tool-centre points given as an offset on a body become sites, and ``exclude`` pairs become
-   contact exclusions.
+   contact exclusions;
+8. ``home``: the keyframe for a model that has none, at the model's reference configuration except the
+   joints it names; every actuator that drives one joint is commanded to that joint's position there.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from besman.robots import menagerie
+from besman.robots import menagerie, packages
 from besman.robots.description import DescriptionError, ModelSource, RobotDescription
 from besman.skills.errors import InputError
 
@@ -34,9 +37,11 @@ CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCon
 
 
 def model_path(source: ModelSource, folder: Path, where: str) -> Path:
-    """The file of a model source: beside the description (``folder``) or found in Menagerie."""
+    """The file of a model source: beside the description (``folder``), in Menagerie, or in a package."""
     if source.menagerie:
         return menagerie.find(source.file, where)
+    if source.package is not None:
+        return packages.find(source.package, source.file, where)
     return folder / source.file
 
 
@@ -152,4 +157,33 @@ def build_spec(description: RobotDescription) -> mujoco.MjSpec:
         body.add_site(name=tcp.site, pos=list(tcp.position), quat=list(tcp.quaternion))
     for first, second in description.exclude:
         spec.add_exclude(bodyname1=first, bodyname2=second)
+    if description.home:
+        _add_home(spec, description)
     return spec
+
+
+def _add_home(spec: mujoco.MjSpec, description: RobotDescription) -> None:
+    """The keyframe ``description.keyframe`` from ``description.home`` (see the module documentation)."""
+    where = f"{description.file}.home"
+    if spec.key(description.keyframe) is not None:
+        raise DescriptionError(f"{where}: the model has its own keyframe {description.keyframe!r}; drop home")
+    try:
+        model = spec.compile()
+    except ValueError as error:
+        raise InputError(f"{description.file}: the robot's model does not compile: {error}") from None
+    qpos = model.qpos0.copy()
+    for joint, position in description.home.items():
+        index = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
+        if index < 0:
+            raise DescriptionError(f"{where}.{joint}: the model has no joint {joint!r}")
+        low, high = model.jnt_range[index]
+        if model.jnt_limited[index] and not low <= position <= high:
+            raise DescriptionError(f"{where}.{joint}: {position} outside the joint's range [{low}, {high}]")
+        qpos[model.jnt_qposadr[index]] = position
+    ctrl = np.zeros(model.nu)
+    for actuator in range(model.nu):
+        if model.actuator_trntype[actuator] == mujoco.mjtTrn.mjTRN_JOINT:
+            ctrl[actuator] = qpos[model.jnt_qposadr[model.actuator_trnid[actuator, 0]]]
+        if model.actuator_ctrllimited[actuator]:
+            ctrl[actuator] = np.clip(ctrl[actuator], *model.actuator_ctrlrange[actuator])
+    spec.add_key(name=description.keyframe, qpos=qpos.tolist(), ctrl=ctrl.tolist())

@@ -20,7 +20,10 @@ second (rad/s or m/s, and so on); the README of each robot says where every numb
 Schema version 2 adds what lets any arm run the same skills (version 1 files stay valid):
 
 - ``"model"`` may name a file inside MuJoCo Menagerie, ``{"menagerie": "universal_robots_ur5e/ur5e.xml"}``
-  (found on this machine by :mod:`besman.robots.menagerie`, never downloaded), and ``"attach"`` lists models
+  (found on this machine by :mod:`besman.robots.menagerie`, never downloaded), or a file that an installed
+  Python package ships, ``{"package": "openarm-mujoco", "file": "v2/openarm_bimanual.xml"}``
+  (:mod:`besman.robots.packages`); ``"home"`` (joint -> position) defines the ``keyframe`` for a model that
+  has none (the actuators that drive those joints commanded there too); ``"attach"`` lists models
   attached at a site of it (a gripper on a flange: ``{"model": ..., "site": "attachment_site", "prefix":
   "gripper/"}``; names inside get the prefix, the keyframe is extended). ``"floor"`` adds besman's stage
   (floor and lights) to a model that has none, ``"mount"`` (``position``, ``yaw_degrees``) moves the robot's
@@ -38,7 +41,10 @@ Schema version 2 adds what lets any arm run the same skills (version 1 files sta
   and releases, the pad geoms of each side (``pads``: two lists) and the opening's velocity, acceleration and
   jerk limits. With several arms working at once, groups that two arms share (a waist) are held.
 - ``"tabletop"``: where the tabletop world puts its table and shelf boards and where objects and targets may
-  be, in the robot's frame (the world's, with the robot standing at the origin).
+  be, in the robot's frame (the world's, with the robot standing at the origin); a two-arm robot adds
+  ``"handover"``: the area on the table where the left hand picks the bar, the area on the shelf where the
+  right hand puts it, and the two poses between (``ready``: the right hand waits there; ``present``: the left
+  hand holds the bar there), each ``{"position": [x, y, z], "yaw": rad}`` (yaw optional).
 """
 
 from __future__ import annotations
@@ -82,10 +88,12 @@ class GroupSpec:
 
 @dataclass(frozen=True)
 class ModelSource:
-    """A model file: beside the description (``menagerie`` False) or a path inside MuJoCo Menagerie."""
+    """A model file: beside the description, a path inside MuJoCo Menagerie (``menagerie``), or a file that
+    the installed Python distribution ``package`` ships (``file`` is the tail of its path)."""
 
     file: str
-    menagerie: bool
+    menagerie: bool = False
+    package: str | None = None
 
 
 @dataclass(frozen=True)
@@ -142,15 +150,39 @@ class Board:
     y: tuple[float, float]
 
 
+Area = tuple[tuple[float, float], tuple[float, float]]  # (x0, x1), (y0, y1)
+
+
+@dataclass(frozen=True)
+class HandPose:
+    """Where a hand goes: ``position`` (m) pointing down, turned by ``yaw`` (rad) about z (None: as it is)."""
+
+    position: tuple[float, float, float]
+    yaw: float | None = None
+
+
+@dataclass(frozen=True)
+class HandoverLayout:
+    """A two-arm handover on the tabletop: the bar's area on the table (the left hand's reach), its place
+    area on the shelf (the right hand's), where the right hand waits and where the left hand presents."""
+
+    bar: Area
+    places: Area
+    ready: HandPose
+    present: HandPose
+
+
 @dataclass(frozen=True)
 class TabletopLayout:
-    """The tabletop world around a robot: the table and the shelf board on it, and the areas (x, y ranges)
-    where objects stand on the table and where they are to be placed on the shelf."""
+    """The tabletop world around a robot: the table and the shelf board on it, the areas (x, y ranges)
+    where objects stand on the table and where they are to be placed on the shelf, and (two arms) the
+    handover's."""
 
     table: Board
     shelf: Board
-    objects: tuple[tuple[float, float], tuple[float, float]]
-    places: tuple[tuple[float, float], tuple[float, float]]
+    objects: Area
+    places: Area
+    handover: HandoverLayout | None = None
 
 
 @dataclass(frozen=True)
@@ -181,6 +213,7 @@ class RobotDescription:
     tabletop: TabletopLayout | None = None
     velocity_feedforward: bool = False
     gravity_compensation: bool = False
+    home: dict[str, float] = field(default_factory=dict)
 
     @property
     def file(self) -> Path:
@@ -238,11 +271,18 @@ def _limits(spec: Any, where: str) -> JointLimitSpec:
 
 def _model_source(value: Any, where: str) -> ModelSource:
     if isinstance(value, str):
-        return ModelSource(value, menagerie=False)
+        return ModelSource(value)
     if isinstance(value, dict) and set(value) == {"menagerie"} and isinstance(value["menagerie"], str):
         return ModelSource(value["menagerie"], menagerie=True)
+    if (
+        isinstance(value, dict)
+        and set(value) == {"package", "file"}
+        and all(isinstance(item, str) for item in value.values())
+    ):
+        return ModelSource(value["file"], package=value["package"])
     raise DescriptionError(
-        f'{where}: expected a file name or {{"menagerie": "folder/file.xml"}}, got {value!r}'
+        f'{where}: expected a file name, {{"menagerie": "folder/file.xml"}} or '
+        f'{{"package": "distribution", "file": "folder/file.xml"}}, got {value!r}'
     )
 
 
@@ -318,27 +358,54 @@ def _board(value: Any, where: str) -> Board:
     return Board(float(height), _range(value.get("x"), f"{where}.x"), _range(value.get("y"), f"{where}.y"))
 
 
-def _area(value: Any, where: str) -> tuple[tuple[float, float], tuple[float, float]]:
+def _area(value: Any, where: str) -> Area:
     value = _object(value, where)
     return _range(value.get("x"), f"{where}.x"), _range(value.get("y"), f"{where}.y")
 
 
+def _hand_pose(value: Any, where: str) -> HandPose:
+    value = _object(value, where)
+    unknown = sorted(set(value) - {"position", "yaw"})
+    if unknown:
+        raise DescriptionError(f"{where}.{unknown[0]}: not a field of a hand pose (position, yaw)")
+    yaw = value.get("yaw")
+    return HandPose(
+        _numbers(value.get("position"), f"{where}.position", 3),
+        None if yaw is None else _numbers([yaw], f"{where}.yaw")[0],
+    )
+
+
+def _handover(value: Any, where: str) -> HandoverLayout:
+    value = _object(value, where)
+    return HandoverLayout(
+        bar=_area(_field(value, "bar", dict, where), f"{where}.bar"),
+        places=_area(_field(value, "places", dict, where), f"{where}.places"),
+        ready=_hand_pose(_field(value, "ready", dict, where), f"{where}.ready"),
+        present=_hand_pose(_field(value, "present", dict, where), f"{where}.present"),
+    )
+
+
+def _inside(area: Area, board: Board) -> bool:
+    (x0, x1), (y0, y1) = area
+    return board.x[0] <= x0 and x1 <= board.x[1] and board.y[0] <= y0 and y1 <= board.y[1]
+
+
 def _tabletop(value: Any, where: str) -> TabletopLayout:
     value = _object(value, where)
+    handover = value.get("handover")
     layout = TabletopLayout(
         table=_board(_field(value, "table", dict, where), f"{where}.table"),
         shelf=_board(_field(value, "shelf", dict, where), f"{where}.shelf"),
         objects=_area(_field(value, "objects", dict, where), f"{where}.objects"),
         places=_area(_field(value, "places", dict, where), f"{where}.places"),
+        handover=None if handover is None else _handover(handover, f"{where}.handover"),
     )
-    for name, (xs, ys), board in (("objects", layout.objects, "table"), ("places", layout.places, "shelf")):
-        support = getattr(layout, board)
-        if not (
-            support.x[0] <= xs[0]
-            and xs[1] <= support.x[1]
-            and support.y[0] <= ys[0]
-            and ys[1] <= support.y[1]
-        ):
+    areas = [("objects", layout.objects, "table"), ("places", layout.places, "shelf")]
+    if layout.handover is not None:
+        handover = layout.handover
+        areas += [("handover.bar", handover.bar, "table"), ("handover.places", handover.places, "shelf")]
+    for name, area, board in areas:
+        if not _inside(area, getattr(layout, board)):
             raise DescriptionError(f"{where}.{name}: the area must lie on the {board}")
     return layout
 
@@ -369,7 +436,7 @@ def read_description(path: Path) -> RobotDescription:
             name=_field(raw, "name", str, where),
             title=optional_field(raw, "title", str, where, DescriptionError) or "",
             folder=path.parent,
-            model=ModelSource(_field(raw, "model", str, where), menagerie=False),
+            model=ModelSource(_field(raw, "model", str, where)),
             keyframe=_field(raw, "keyframe", str, where),
             groups=groups,
             limits=limits,
@@ -417,6 +484,9 @@ def read_description(path: Path) -> RobotDescription:
     for key, value in switches.items():
         if not isinstance(value, bool):
             raise DescriptionError(f"{where}.{key}: expected true or false, got {value!r}")
+    home = _object(raw.get("home", {}), f"{where}.home")
+    for joint, position in home.items():
+        _numbers([position], f"{where}.home.{joint}")
     return RobotDescription(
         name=_field(raw, "name", str, where),
         title=optional_field(raw, "title", str, where, DescriptionError) or "",
@@ -434,4 +504,5 @@ def read_description(path: Path) -> RobotDescription:
         tabletop=None if tabletop is None else _tabletop(tabletop, f"{where}.tabletop"),
         velocity_feedforward=switches["velocity_feedforward"],
         gravity_compensation=switches["gravity_compensation"],
+        home={joint: float(position) for joint, position in home.items()},
     )

@@ -59,17 +59,16 @@ class Gripper:
 
 def measure_openings(robot, arm: str | None, commands, settle: float = 3.0) -> np.ndarray:
     """The opening (m per finger) that each actuator command holds with nothing in the hand: from the
-    robot's home keyframe the command is applied for ``settle`` s of simulated time, then the gap between
-    the inner faces of the two sides' pads (box geoms), along the tool frame's closing (y) axis, is halved.
-    This is how each robot's opening/command table is made (its README cites the run)."""
+    robot's home keyframe the command is applied for ``settle`` s of simulated time, then the smallest
+    distance between a pad of one side and a pad of the other (MuJoCo's ``mj_geomDistance``, exact for
+    boxes and convex meshes) is halved. This is how each robot's opening/command table is made (its README
+    cites the run)."""
     import mujoco
 
     arm = robot.arm(arm)
     gripper, model = arm.gripper, robot.model
     if gripper is None:
         raise ValueError(f"robot {robot.name!r}: arm {arm.name!r} has no gripper")
-    if any((model.geom_type[side] != mujoco.mjtGeom.mjGEOM_BOX).any() for side in gripper.pads):
-        raise ValueError(f"robot {robot.name!r}: measuring the opening needs box-shaped pads")
     data = mujoco.MjData(model)
     openings = []
     for command in np.atleast_1d(commands):
@@ -77,10 +76,10 @@ def measure_openings(robot, arm: str | None, commands, settle: float = 3.0) -> n
         data.ctrl[gripper.actuator] = command
         for _ in range(round(settle / model.opt.timestep)):
             mujoco.mj_step(model, data)
-        closing = data.site(arm.tcp).xmat.reshape(3, 3)[:, 1]
-        centres = [data.geom_xpos[side] @ closing for side in gripper.pads]
-        halves = [model.geom_size[side][:, 1] for side in gripper.pads]
-        high, low = (0, 1) if centres[0].mean() > centres[1].mean() else (1, 0)
-        gap = (centres[high] - halves[high]).min() - (centres[low] + halves[low]).max()
-        openings.append(gap / 2)
+        gap = min(
+            mujoco.mj_geomDistance(model, data, int(one), int(other), 1.0, None)
+            for one in gripper.pads[0]
+            for other in gripper.pads[1]
+        )
+        openings.append(max(gap, 0.0) / 2)  # touching pads press into each other a little: closed
     return np.array(openings)

@@ -122,7 +122,7 @@ class Executor:
             if gripper is not None
             else None
         )
-        self._finger_dofs = self.hand.fingers.dof_indices if gripper is not None else None
+        self._finger_joints = self.hand.fingers.qpos_indices if gripper is not None else None
         self.reference_settings = ReferenceSettings(
             period=config.control_period,
             ik_tolerances=(config.ik_position_tolerance, config.ik_orientation_tolerance),
@@ -306,9 +306,9 @@ def _simulate(
 ) -> list[tuple[np.ndarray, np.ndarray | None]]:
     """Steps the physics through the arms' commanded states, cycle by cycle, logging each arm's cycles;
     returns per arm its measured joint positions after each cycle and (for an arm whose gripper moves) the
-    fingers' velocities."""
+    fingers' positions."""
     model, data, step = world.model, world.data, mujoco.mj_step
-    ctrl, qpos, qvel = data.ctrl, data.qpos, data.qvel
+    ctrl, qpos = data.ctrl, data.qpos
     rows = len(plans[0].states)
     # Per arm: its actuators and commanded positions, its gripper actuator and commands (or None).
     drives = [
@@ -322,7 +322,7 @@ def _simulate(
     ]
     measured = [np.empty((rows, member.arm.dofs)) for member in members]
     fingers = [
-        np.empty((rows, len(member._finger_dofs))) if plan.gripper_moves else None
+        np.empty((rows, len(member._finger_joints))) if plan.gripper_moves else None
         for member, plan in zip(members, plans, strict=True)
     ]
     joints = [member.arm.qpos_indices for member in members]
@@ -338,7 +338,7 @@ def _simulate(
         for index, member_joints in enumerate(joints):
             measured[index][row] = qpos[member_joints]
             if fingers[index] is not None:
-                fingers[index][row] = qvel[members[index]._finger_dofs]
+                fingers[index][row] = qpos[members[index]._finger_joints]
     for member, plan in zip(members, plans, strict=True):
         openings = np.zeros(rows) if plan.gripper is None else plan.gripper[:, 0, 0]
         member.log.append(times, plan.states, openings)

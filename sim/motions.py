@@ -53,7 +53,7 @@ class Chunk:
         commanded, commanded_velocity, commanded_acceleration: the arm's commanded state after each cycle.
         measured: the arm's joint positions after each cycle's physics.
         gripper: the commanded gripper opening and its velocity after each cycle (columns), if recorded.
-        finger_speed: the fingers' largest measured speed after each cycle, if recorded.
+        fingers: the fingers' measured joint positions after each cycle (columns), if recorded.
     """
 
     def __init__(
@@ -65,7 +65,7 @@ class Chunk:
         fingers: np.ndarray | None = None,
     ) -> None:
         """``states`` (n, 3, dofs): commanded positions, velocities, accelerations; ``gripper`` (n, 3, 1) the
-        same for the gripper; ``fingers`` (n, fingers) the fingers' measured velocities."""
+        same for the gripper; ``fingers`` (n, fingers) the fingers' measured positions."""
         self.first, self.measured = first, measured
         self.commanded, self.commanded_velocity, self.commanded_acceleration = (
             states[:, 0],
@@ -73,7 +73,7 @@ class Chunk:
             states[:, 2],
         )
         self.gripper = None if gripper is None else gripper[:, :2, 0]
-        self.finger_speed = None if fingers is None else np.abs(fingers).max(axis=1)
+        self.fingers = fingers
 
     def __len__(self) -> int:
         return len(self.measured)
@@ -274,7 +274,12 @@ class GripperMotion(Motion):
     grasp_object: str | None = None
     _target: tuple = field(default=(), init=False, repr=False)
     _goal: float = field(default=0.0, init=False, repr=False)
+    _fingers: np.ndarray | None = field(default=None, init=False, repr=False)  # positions of recent cycles
     moves_gripper: ClassVar[bool] = True
+    # The fingers have settled when, over the settle window, they moved less than this speed (joint units per
+    # s) would take them: a net motion, not the instantaneous speed, because fingers that squeeze an object
+    # another hand also holds chatter in place (+-1.5e-3 rad/s on OpenArm, 1e-6 rad net).
+    still_speed: ClassVar[float] = 1e-3
 
     def begin(self, executor: Executor) -> None:
         if executor.hand is None:
@@ -294,10 +299,15 @@ class GripperMotion(Motion):
         opening, speed = chunk.gripper[:, 0], chunk.gripper[:, 1]
         closed_on_limit = self._goal <= executor.gripper_stream.lower[0] + 1e-9
         commanded_done = (np.abs(opening - self._goal) < 1e-9) | (closed_on_limit & (np.abs(speed) < 1e-9))
-        still = commanded_done & (chunk.finger_speed <= 1e-3)
+        window = executor.config.settle_cycles
+        allowed = self.still_speed * window * executor.config.control_period
+        fingers = chunk.fingers if self._fingers is None else np.concatenate([self._fingers, chunk.fingers])
+        before = len(fingers) - len(chunk)  # rows of earlier chunks at the front
+        self._fingers = fingers[-window:]
         for row in range(len(chunk) if blocked is None else blocked):
-            self.settled = self.settled + 1 if still[row] else 0
-            if self.settled >= executor.config.settle_cycles:
+            self.settled = self.settled + 1 if commanded_done[row] else 0
+            at = before + row
+            if self.settled >= window and np.abs(fingers[at] - fingers[at - window]).max() <= allowed:
                 # Judged on the simulation as it is now (at most a chunk later): the fingers have settled.
                 if self.expect_grasp and not executor.hand.holds(self.grasp_object):
                     self.finish(MotionStatus.FAILED, "the fingers closed on nothing")

@@ -17,6 +17,7 @@ from besman.sim.executor import limit_violations
 from besman.sim.throw_execution import ThrowingExecutor
 from besman.sim.throwing import ThrowingTask
 from besman.sim.world import GraspableObject
+from besman.skills.errors import InputError
 from besman.skills.pool import SkillTemplatePool
 from besman.trees.blackboard import set_task_values
 from besman.trees.conditions import ArmsApart, ObjectAt
@@ -213,6 +214,28 @@ def test_every_demo_succeeds_in_ten_seeded_configurations(name):
         assert max(s["miss_m"] for s in summaries) <= 0.5
     if name == "handover":  # never a contact between the arms, at any tick of any run
         assert all(s["ticks_arms_touching"] == 0 and s["arms_closest_m"] >= 0.03 for s in summaries)
+
+
+def test_plan_move_goes_to_the_pose_its_goal_role_holds():
+    """A pose that depends on the robot comes from the blackboard (remap: {goal: KEY}): the planned move
+    ends there; a malformed pose fails the leaf with the key in the message; exactly one target."""
+    py_trees.blackboard.Blackboard.clear()
+    world = tabletop_world()
+    executor = Executor(world)
+    set_task_values({"ready": {"position": [0.5, -0.25, 0.95], "yaw": -0.8}, "broken": {"where": 1}})
+    plan = PlanMove("plan", namespace="m", remap={"goal": "/task/ready"})
+    move = ExecutePrimitive("move", namespace="m", remap={"primitive": "/m/motion"})
+    root = py_trees.composites.Sequence("go", memory=True, children=[plan, move])
+    assert Runner(root, executor).run().status == "SUCCESS"
+    tcp = world.data.site(executor.arm.site)
+    np.testing.assert_allclose(tcp.xpos, [0.5, -0.25, 0.95], atol=0.01)
+    closing = tcp.xmat.reshape(3, 3)[:, 1]  # the hand turned by the yaw (or half a turn: the same grasp)
+    assert (np.arctan2(closing[1], closing[0]) + 0.8 + 0.05) % np.pi < 0.1
+    broken = PlanMove("broken", namespace="b", remap={"goal": "/task/broken"})
+    result = Runner(broken, Executor(tabletop_world())).run()
+    assert result.status == "FAILURE" and "/task/broken must hold {'position'" in result.message
+    with pytest.raises(InputError, match="give exactly one of position, rise, home"):
+        PlanMove("both", position=[0.5, 0, 1], remap={"goal": "/task/ready"})
 
 
 def test_keep_apart_stops_its_subtree_when_the_arms_come_closer_than_its_margin():

@@ -42,8 +42,9 @@ def set_task_values(values: Mapping[str, object]) -> None:
     for name, value in values.items():
         key = f"{TASK_NAMESPACE}/{name}"
         client.register_key(key=key, access=py_trees.common.Access.WRITE)
-        # Numbers become arrays; names and structured values (a list of items for a loop) stay as they are.
-        structured = isinstance(value, str) or (
+        # Numbers become arrays; names and structured values (a pose, a list of items for a loop) stay as
+        # they are.
+        structured = isinstance(value, str | Mapping) or (
             isinstance(value, list | tuple)
             and (not value or any(isinstance(item, Mapping) for item in value))
         )

@@ -12,11 +12,12 @@ same seed gives the same configuration and the same run. ``besman demo --list`` 
 - ``sort``: three boxes, each to its own place on the shelf, in a loop over the blackboard's list of objects
   (:class:`~besman.trees.loops.ForEach`); one box is taken out of the hand during its transport and set down
   elsewhere on the table, and the tree grasps it again. Any robot with a tabletop layout.
-- ``handover``: AILA's left arm picks a bar from the table's left side at one end while the right arm gets
-  ready (in parallel), presents it in front of the torso, the right hand takes the other end (both grippers
-  closed), the left lets go and rises, and the right arm puts the bar on the shelf while the left goes home
-  (in parallel); ``KeepApart`` guards the parallel moves, and the run counts the ticks at which the arms
-  touch in the simulation (none is a success condition).
+- ``handover``: a two-arm robot's (AILA by default; ``--robot openarm``) left arm picks a bar from the
+  table's left side at one end while the right arm gets ready (in parallel), presents it in front of the body
+  (where: the robot's layout, ``tabletop.handover``), the right hand takes the other end (both grippers
+  closed), the left lets go, rises and goes home, then the right arm puts the bar on the shelf;
+  ``KeepApart`` guards the moves, and the run counts the ticks at which the arms touch in the simulation
+  (none is a success condition).
 - ``throw``: the PA-10 throws the ball at a target (``--target X,Y``, or drawn from the template's box) with
   the throwing skill template of the paper's experiment.
 
@@ -90,10 +91,12 @@ class Demo:
 
 
 def _two_hand_tabletop(robot: robots.RobotDescription) -> bool:
-    """A tabletop layout and two arms "right" and "left", each with a gripper."""
+    """A tabletop layout with a handover and two arms "right" and "left", each with a gripper."""
     arms = robot.arms
-    return robot.tabletop is not None and all(
-        side in arms and arms[side].gripper is not None for side in ("right", "left")
+    return (
+        robot.tabletop is not None
+        and robot.tabletop.handover is not None
+        and all(side in arms and arms[side].gripper is not None for side in ("right", "left"))
     )
 
 
@@ -259,8 +262,6 @@ def _sort(seed: int | None, options: Mapping, observe: Observer | None) -> DemoR
 
 # A bar, so that two hands can hold it at once from above, 12 cm apart: 26 x 4 x 4 cm, lying along y.
 BAR = GraspableObject("bar", size=(0.02, 0.13, 0.02), mass=0.2, rgba=(0.85, 0.65, 0.15, 1.0))
-HANDOVER_TABLE = ((0.45, 0.15), (0.50, 0.22))  # low and high x, y of the bar's centre (the left arm's reach)
-HANDOVER_PLACE = ((0.50, -0.45), (0.55, -0.38))  # low and high x, y on the shelf (the right arm's reach)
 
 
 class ArmContacts:
@@ -283,10 +284,21 @@ class ArmContacts:
         self.closest = min(self.closest, self.proximity.distance(self.closest))
 
 
+def _draw(rng: np.random.Generator, area) -> np.ndarray:
+    """A point of an (x range, y range) area."""
+    (x0, x1), (y0, y1) = area
+    return rng.uniform((x0, y0), (x1, y1)).round(4)
+
+
+def _hand_pose(pose) -> dict:
+    return {"position": list(pose.position), "yaw": pose.yaw}
+
+
 def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> DemoRun:
+    layout = robots.describe(options["robot"]).tabletop.handover
     rng = np.random.default_rng(seed)
-    bar = rng.uniform(*HANDOVER_TABLE).round(4)
-    place = rng.uniform(*HANDOVER_PLACE).round(4)
+    bar = _draw(rng, layout.bar)
+    place = _draw(rng, layout.places)
     py_trees.blackboard.Blackboard.clear()
     root = load_tree(EXAMPLES / "handover.yaml")
     world = tabletop_world((BAR,), options["robot"])
@@ -295,7 +307,8 @@ def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> D
     # bar, with it).
     right = Executor(world, ("right", "left"))
     contacts = ArmContacts(right, right.arm_executor("left"))
-    set_task_values({"place": place})
+    poses = {"ready": _hand_pose(layout.ready), "present": _hand_pose(layout.present)}
+    set_task_values({"place": place, **poses})
     settings = {"bar": bar.tolist(), "place": place.tolist()}
 
     runner = _runner(

@@ -296,11 +296,12 @@ class PlanReturn(SimulationBehaviour):
 
 class PlanMove(SimulationBehaviour):
     """Writes ``motion``: the hand of ``arm`` to ``position`` (x, y, z) as it is turned (or pointing down,
-    turned by ``yaw``), straight up by
-    ``rise`` m, or the arm to its ``home`` configuration (exactly one), planned from the commanded
-    configuration; the end must not collide, except with the held ``object``."""
+    turned by ``yaw``), to the pose that the role ``goal`` holds (``{"position": [x, y, z], "yaw": rad}``,
+    yaw optional: a pose that depends on the robot or the task, given as ``remap: {goal: /task/...}``),
+    straight up by ``rise`` m, or the arm to its ``home`` configuration (exactly one), planned from the
+    commanded configuration; the end must not collide, except with the held ``object``."""
 
-    roles: ClassVar = {"motion": Access.WRITE}
+    roles: ClassVar = {"motion": Access.WRITE, "goal": Access.READ}
     parameters: ClassVar = {
         "position": "floats[3]",
         "rise": "float>0",
@@ -326,26 +327,49 @@ class PlanMove(SimulationBehaviour):
         arm: str | None = None,
     ):
         super().__init__(name, namespace=namespace, remap=remap, arm=arm)
-        if sum((position is not None, rise is not None, bool(home))) != 1:
-            raise InputError(f"{name}: give exactly one of position, rise and home: true")
+        self.from_goal = "goal" in self.remap
+        if sum((position is not None, rise is not None, bool(home), self.from_goal)) != 1:
+            raise InputError(
+                f"{name}: give exactly one of position, rise, home: true and remap: {{goal: KEY}}"
+            )
         self.position = None if position is None else np.asarray(position, dtype=float)
         if yaw is not None and position is None:
             raise InputError(f"{name}: yaw turns the hand at a position; give the position too")
         self.rise, self.home, self.yaw, self.duration = rise, bool(home), yaw, duration
         self.use_object(object)
         self.use("motion")
+        if self.from_goal:
+            self.use("goal")
+
+    def _target(self) -> tuple[np.ndarray | None, float | None]:
+        """The position and yaw to move to: the parameters, or the pose at ``goal`` now."""
+        if not self.from_goal:
+            return self.position, self.yaw
+        goal = self.blackboard.get("goal")
+        try:
+            position = np.asarray(goal["position"], dtype=float)
+            yaw = goal.get("yaw")
+            yaw = None if yaw is None else float(yaw)
+        except (TypeError, KeyError, ValueError, AttributeError):
+            raise ValueError(
+                f"{self.key('goal')} must hold {{'position': [x, y, z], 'yaw': rad}}, got {goal!r}"
+            ) from None
+        if position.shape != (3,) or not np.isfinite(position).all():
+            raise ValueError(f"{self.key('goal')}: position must be three finite numbers, got {goal!r}")
+        return position, yaw
 
     def update(self) -> Status:
         executor = self.executor
         held = self.object
         try:
+            position, yaw = self._target()
             motion = plan_move(
                 executor.arm,
                 executor.position,
-                position=self.position,
+                position=position,
                 rise=self.rise,
                 home=self.home,
-                yaw=self.yaw,
+                yaw=yaw,
                 allowed=() if held is None else (held,),
                 duration=self.duration,
             )

@@ -1,0 +1,131 @@
+"""OpenArm v2: a model from an installed Python package, a home keyframe defined by the description, both
+arms' grippers measured, and the tabletop trees on it."""
+
+import json
+import shutil
+
+import mujoco
+import numpy as np
+import pytest
+
+import besman.robots as robots
+from besman.robots import packages
+from besman.robots.description import DescriptionError
+from besman.robots.gripper import measure_openings
+from besman.robots.robot import ROBOTS_DIR
+from besman.sim.executor import limit_violations
+from besman.trees.gallery import prepare_demo
+
+
+@pytest.fixture(scope="module")
+def openarm():
+    return robots.load("openarm")
+
+
+def test_the_model_is_the_file_the_package_installed_found_through_its_record(openarm):
+    found = packages.find("openarm-mujoco", "v2/openarm_bimanual.xml", "test.model")
+    from openarm_mujoco.v2 import openarm_bimanual_xml  # the package's own way to find it
+
+    assert found.samefile(openarm_bimanual_xml())
+    assert openarm.model.njnt == 18 and openarm.model.nu == 16
+    assert list(openarm.arms) == ["right", "left"]
+
+
+@pytest.mark.parametrize(
+    ("distribution", "relative", "message"),
+    [
+        ("no-such-robot-package", "robot.xml", r"test\.package: 'no-such-robot-package' is not installed"),
+        (
+            "openarm-mujoco",
+            "v2/nosuch.xml",
+            r"test\.file: openarm-mujoco has no file ending in 'v2/nosuch",
+        ),
+        ("openarm-mujoco", "../v2/openarm_bimanual.xml", r"test\.file: .* must be a relative path"),
+    ],
+)
+def test_a_package_file_that_is_not_there_is_named_with_the_field(distribution, relative, message):
+    with pytest.raises(DescriptionError, match=message):
+        packages.find(distribution, relative, "test")
+
+
+def test_home_is_the_descriptions_keyframe_with_the_actuators_commanded_there(openarm):
+    home = openarm.description.home
+    model, key = openarm.model, openarm.model.key("home")
+    for joint, position in home.items():
+        assert key.qpos[model.joint(joint).qposadr[0]] == pytest.approx(position)
+    for actuator in range(model.nu):  # every actuator holds its joint where home puts it
+        joint = model.actuator_trnid[actuator, 0]
+        assert key.ctrl[actuator] == pytest.approx(key.qpos[model.jnt_qposadr[joint]])
+    data = openarm.make_data()
+    for _ in range(1000):  # 2 s: the robot stays at home
+        mujoco.mj_step(model, data)
+    assert np.abs(data.qpos - key.qpos).max() < 0.01
+    for side in ("right", "left"):  # the hands point down above the table
+        site = data.site(f"{side}_tcp")
+        assert site.xmat.reshape(3, 3)[:, 2] == pytest.approx([0, 0, -1], abs=0.02)
+        assert 0.2 < site.xpos[2] - openarm.description.tabletop.table.height < 0.3
+
+
+@pytest.mark.parametrize(
+    ("home", "message"),
+    [
+        ({"openarm_left_joint9": 0.0}, r"home\.openarm_left_joint9: the model has no joint"),
+        ({"openarm_left_joint4": 3.0}, r"home\.openarm_left_joint4: 3\.0 outside the joint's range"),
+        ({"openarm_left_joint4": "up"}, r"home\.openarm_left_joint4: expected a list of finite numbers"),
+    ],
+)
+def test_a_bad_home_is_named_with_the_joint(tmp_path, home, message):
+    raw = json.loads((ROBOTS_DIR / "openarm" / "description.json").read_text())
+    raw["home"] = home
+    (tmp_path / "description.json").write_text(json.dumps(raw))
+    with pytest.raises(DescriptionError, match=message):
+        robots.load(str(tmp_path))
+
+
+def test_a_home_for_a_model_with_its_own_keyframe_is_refused(tmp_path):
+    shutil.copytree(ROBOTS_DIR / "pa10", tmp_path / "pa10")
+    path = tmp_path / "pa10" / "description.json"
+    raw = json.loads(path.read_text())
+    raw["schema_version"], raw["home"] = 2, {"S1": 0.0}
+    path.write_text(json.dumps(raw))
+    with pytest.raises(DescriptionError, match=r"home: the model has its own keyframe 'home'; drop home"):
+        robots.load(str(tmp_path / "pa10"))
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_each_grippers_opening_table_is_what_the_model_does(openarm, side):
+    """Commands between the table's rows, run in the simulation, open the fingers as far as the table
+    interpolates; fully open the tips are 13 cm apart."""
+    gripper = openarm.arm(side).gripper
+    sign = 1.0 if side == "left" else -1.0
+    commands = sign * np.array([0.1, 0.32, 0.55])
+    np.testing.assert_allclose(
+        gripper.opening_for(commands), measure_openings(openarm, side, commands), atol=5e-4
+    )
+    assert gripper.upper == pytest.approx(0.0665, abs=5e-4)
+
+
+@pytest.mark.slow
+def test_grasp_then_place_runs_on_the_openarm_within_its_limits(openarm):
+    """Seeds the other tests do not use; every object within the place tolerance."""
+    for seed in (2001, 2002):
+        run = prepare_demo("grasp-then-place", seed, {"robot": "openarm"})
+        result = run.runner.run()
+        summary = run.judge(result)
+        assert summary["success"], (seed, summary["message"])
+        executor = run.runner.executor
+        assert not limit_violations(executor.log, executor), seed
+
+
+@pytest.mark.slow
+def test_the_handover_runs_on_the_openarm_ten_times_without_the_arms_touching(openarm):
+    """The handover tree, unchanged from AILA's, with the poses of the OpenArm's layout: the bar reaches its
+    place within the tolerance, no tick with a contact between the arms, every command within the limits."""
+    for seed in range(10):
+        run = prepare_demo("handover", seed, {"robot": "openarm"})
+        summary = run.judge(run.runner.run())
+        assert summary["success"], (seed, summary["status"], summary["message"])
+        assert summary["ticks_arms_touching"] == 0 and summary["arms_closest_m"] >= 0.03
+        executor = run.runner.executor
+        for member in (executor, executor.arm_executor("left")):
+            assert not limit_violations(member.log, member), seed
