@@ -7,8 +7,8 @@ bounds with ``seed`` (none of them a training task of the pool, which the script
 the robot's tabletop in MuJoCo (the pool: ``examples/pools/pick_place`` for AILA,
 ``examples/pools/pick_place_<robot>`` for another robot, unless given):
 
-- ``ik``: ``examples/trees/grasp_then_place.yaml``, every motion planned (point-to-point approach and
-  transport);
+- ``ik``: ``examples/trees/grasp_then_place.yaml``, every motion planned (point-to-point reach and
+  carry);
 - ``zero-shot``: ``examples/trees/grasp_then_place_learned.yaml`` with the templates' means only (online
   refinement off);
 - ``refined``: the same tree refining every template instance online first (at most 25 rollouts each in a

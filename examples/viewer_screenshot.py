@@ -31,7 +31,7 @@ def main() -> None:
         page.wait_for_function("document.body.innerText.includes('Behaviour tree')", timeout=60_000)
         page.wait_for_timeout(3000)  # software WebGL: the scene fades in
         page.get_by_role("button", name="Run", exact=True).click()
-        page.wait_for_function("document.body.innerText.includes('transport RUNNING')", timeout=60_000)
+        page.wait_for_function("document.body.innerText.includes('carry RUNNING')", timeout=60_000)
         page.wait_for_timeout(700)
         write_atomically(out, page.screenshot())
         browser.close()

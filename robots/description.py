@@ -27,11 +27,12 @@ Schema version 2 adds what lets any arm run the same skills (version 1 files sta
   attached at a site of it (a gripper on a flange: ``{"model": ..., "site": "attachment_site", "prefix":
   "gripper/"}``; names inside get the prefix, the keyframe is extended). ``"floor"`` adds besman's stage
   (floor and lights) to a model that has none, ``"mount"`` (``position``, ``yaw_degrees``) moves the robot's
-  root bodies, ``"options"`` sets simulation options (``impratio``, ``cone``) an attached part needs, and
-  ``"exclude"`` lists body pairs whose contacts are ignored. ``"velocity_feedforward": true`` adds the
-  commanded velocity times kv/kp to each position actuator's command: such an actuator's damping acts on
-  the joint's velocity, not on its error, so without it a joint lags kv/kp x its speed (0.2 s x speed on
-  MuJoCo Menagerie's UR5e); with it the actuator is a PD controller on the commanded state.
+  root bodies, ``"options"`` sets simulation options (``impratio``, ``cone``, ``timestep``) that an
+  attached part or the model needs, and ``"exclude"`` lists body pairs whose contacts
+  are ignored. ``"velocity_feedforward": true`` adds the commanded velocity times kv/kp to each position
+  actuator's command: such an actuator's damping acts on the joint's velocity, not on its error, so without
+  it a joint lags kv/kp x its speed (0.2 s x speed on MuJoCo Menagerie's UR5e); with it the actuator is a PD
+  controller on the commanded state.
   ``"gravity_compensation": true`` compensates the weight of the robot's own bodies (MuJoCo's ``gravcomp``),
   as an arm's controller does; what it holds still weighs.
 - ``"arms"``: per arm its joint groups, its tool-centre point (a site, or ``{"body", "position"}`` that adds

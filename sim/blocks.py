@@ -171,7 +171,7 @@ def _run(executor: Executor, steps, planned, what: str) -> None:
 
 
 # The step of pick and place that a learned block replaces, in its half of the sequence.
-REPLACED_STEPS = {"reach": (PICK_STEPS, "approach"), "carry": (PLACE_STEPS, "transport")}
+REPLACED_STEPS = {"reach": (PICK_STEPS, "reach"), "carry": (PLACE_STEPS, "carry")}
 
 
 def steps_after(block: str, planned: PickMotions | PlaceMotions) -> tuple:
@@ -207,12 +207,12 @@ def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -
             place_xy.copy(),
         )
 
-    if block == "reach":  # it replaces the approach
-        return start(pick.approach.dmp.goal.copy(), steps_after(block, pick))
+    if block == "reach":  # it replaces the planned reach
+        return start(pick.reach.dmp.goal.copy(), steps_after(block, pick))
     _run(executor, PICK_STEPS[1:], pick, "grasp")
     put = plan_place(executor.arm, pick.lifted, item, place_xy, plan, settings)
-    if block == "carry":  # it replaces the transport
-        return start(put.transport.dmp.goal.copy(), steps_after(block, put))
+    if block == "carry":  # it replaces the planned carry
+        return start(put.carry.dmp.goal.copy(), steps_after(block, put))
     _run(executor, PLACE_STEPS, put, "placement")
     return start(home, ())
 

@@ -1,7 +1,7 @@
 """Disturbances: what the world does to a run that the robot did not plan for.
 
 A tree that claims to recover from a slip has to be shown one. :class:`TakeFromHand` is the slip a demo
-can repeat: while the hand holds the object and the arm's motion ``during`` (the transport, say) has run
+can repeat: while the hand holds the object and the arm's motion ``during`` (the carry, say) has run
 ``after`` seconds, the object is taken out of the hand and set down upright on the table elsewhere, as a
 person taking it would. Nothing tells the robot: its guard sees the object leave the hand, and the tree
 must notice and recover (grasp it again where it now lies).
@@ -21,7 +21,7 @@ class TakeFromHand:
 
     object: str
     where: tuple[float, float]
-    during: str = "transport"
+    during: str = "carry"
     after: float = 0.5
     done: bool = field(default=False)
 

@@ -1,10 +1,10 @@
 """Planning top-down pick and place motions for an arm, as movement primitives.
 
-A pick is three hand poses above, at and over the object (approach, grasp, lift); a placement is three over,
+A pick is three hand poses above, at and over the object (reach, grasp, lift); a placement is three over,
 at and above the target (carry, place, retreat). :func:`plan_pick` and :func:`plan_place` choose the hand
 yaw (across a pair of the box's faces) for which every pose is reachable and collision-free and the
 vertical moves stay close to a straight line, keeping farthest from the joint limits, and return joint-space
-movement primitives: approach and transport are point-to-point DMPs, the vertical moves DMPs imitating
+movement primitives: reach and carry are point-to-point DMPs, the vertical moves DMPs imitating
 inverse-kinematics solutions along the line (:mod:`besman.sim.primitives`). Behaviour-tree leaves and the
 scripted pick-and-place task execute them the same way. A plan that cannot be made raises
 :class:`PlanningError` with the reason.
@@ -51,10 +51,10 @@ class PickPlacePlan:
     """The parameters of the scripted plan; theta is these numbers in this order."""
 
     approach_height: float = 0.10  # m above the grasp point before descending
-    clearance: float = 0.06  # m between the box's bottom and the shelf top at the ends of the transport
+    clearance: float = 0.06  # m between the box's bottom and the shelf top at the ends of the carry
     grasp_height: float = 0.01  # m above the box's centre where the fingers close (the tips clear the table)
     release_height: float = 0.003  # m above the shelf where the box is let go
-    transport_time: float = 2.0  # s
+    carry_time: float = 2.0  # s
     descend_time: float = 1.0  # s for each descent, lift and retreat
 
     @classmethod
@@ -69,7 +69,7 @@ class PickPlacePlan:
         if not (
             0.03 <= plan.approach_height <= 0.3
             and 0.0 <= plan.clearance <= 0.3
-            and plan.transport_time >= 0.3
+            and plan.carry_time >= 0.3
             and plan.descend_time >= 0.3
             and abs(plan.grasp_height) <= 0.03
             and 0.0 <= plan.release_height <= 0.05
@@ -231,14 +231,14 @@ class Step:
 # Grasp: open, move above the object, down around it, close on it, lift it (then check that it is held).
 PICK_STEPS = (
     Step("open", gripper="open"),
-    Step("approach", move="approach"),
+    Step("reach", move="reach"),
     Step("descend", move="descend"),
     Step("close", gripper="close"),
     Step("lift", move="lift"),
 )
 # Place: carry it above the target, set it down, let go, move the hand up and away.
 PLACE_STEPS = (
-    Step("transport", move="transport", holding=True),
+    Step("carry", move="carry", holding=True),
     Step("set down", move="place", holding=True),
     Step("release", gripper="release"),
     Step("retreat", move="retreat"),
@@ -247,10 +247,10 @@ PLACE_STEPS = (
 
 @dataclass(frozen=True)
 class PickMotions:
-    """Approach (from the configuration it was planned from), descend and lift, and the configuration
+    """Reach (from the configuration it was planned from), descend and lift, and the configuration
     after it."""
 
-    approach: MovementPrimitive
+    reach: MovementPrimitive
     descend: MovementPrimitive
     lift: MovementPrimitive
     lifted: np.ndarray
@@ -258,9 +258,9 @@ class PickMotions:
 
 @dataclass(frozen=True)
 class PlaceMotions:
-    """Transport (from the configuration it was planned from), place and retreat."""
+    """Carry (from the configuration it was planned from), place and retreat."""
 
-    transport: MovementPrimitive
+    carry: MovementPrimitive
     place: MovementPrimitive
     retreat: MovementPrimitive
 
@@ -281,12 +281,12 @@ def plan_pick(
     object_xy,
     plan: PickPlacePlan,
     settings: ReferenceSettings = DEFAULT_SETTINGS,
-    approach: MovementPrimitive | None = None,
+    reach: MovementPrimitive | None = None,
 ) -> PickMotions:
     """Motions that grasp ``item`` at ``object_xy`` (standing on the table) or ``(x, y, z)`` (its centre
     at height z, e.g. held by another hand) from the configuration ``start`` and lift it to carrying
-    height (an object in the air at least :data:`LIFT` up). The approach is a point-to-point move,
-    or the joint-space primitive ``approach`` (a learned reach) moved to this approach's end points
+    height (an object in the air at least :data:`LIFT` up). The reach is a point-to-point move,
+    or the joint-space primitive ``reach`` (learned from people) moved to this reach's end points
     (:func:`~besman.sim.primitives.shaped`)."""
     where = np.asarray(object_xy, dtype=float)
     object_xy = where[:2]
@@ -310,11 +310,11 @@ def plan_pick(
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down grasp of the object")
-    if approach is None:
-        approach = point_to_point("approach", start, leg.configurations[0], arm)
+    if reach is None:
+        reach = point_to_point("reach", start, leg.configurations[0], arm)
     else:
-        approach = shaped(approach, "approach", start, leg.configurations[0], arm)
-    return PickMotions(approach, *leg.primitives, leg.configurations[-1])
+        reach = shaped(reach, "reach", start, leg.configurations[0], arm)
+    return PickMotions(reach, *leg.primitives, leg.configurations[-1])
 
 
 def plan_place(
@@ -324,12 +324,12 @@ def plan_place(
     place_xy,
     plan: PickPlacePlan,
     settings: ReferenceSettings = DEFAULT_SETTINGS,
-    transport: MovementPrimitive | None = None,
+    carry: MovementPrimitive | None = None,
     held=None,
 ) -> PlaceMotions:
     """Motions that carry ``item`` from the configuration ``start`` (holding it at carrying height) to
-    ``place_xy`` on the shelf, set it down and retreat. The transport is a point-to-point move, or the
-    joint-space primitive ``transport`` (a learned carry) moved to its end points.
+    ``place_xy`` on the shelf, set it down and retreat. The carry is a point-to-point move, or the
+    joint-space primitive ``carry`` (learned from people) moved to its end points.
 
     ``held`` (x, y) is where the object's centre is from the hand's grasp point now, for an object held
     off-centre (a bar taken at one end): the object, not the hand, goes to ``place_xy``, and since the
@@ -361,16 +361,16 @@ def plan_place(
     )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down placement at the target")
-    if transport is None:
-        transport = point_to_point("transport", start, leg.configurations[0], arm, plan.transport_time)
+    if carry is None:
+        carry = point_to_point("carry", start, leg.configurations[0], arm, plan.carry_time)
     else:
-        transport = shaped(transport, "transport", start, leg.configurations[0], arm)
-    # The joint-space transport cannot run into a joint limit, but its hand path must stay over the shelf.
-    reference = joint_reference(arm, transport, at_rest(start), settings)
+        carry = shaped(carry, "carry", start, leg.configurations[0], arm)
+    # The joint-space carry cannot run into a joint limit, but its hand path must stay over the shelf.
+    reference = joint_reference(arm, carry, at_rest(start), settings)
     lowest = float(site_path(arm, reference, 40)[:, 2].min())
     if lowest - item.half_height - plan.grasp_height < arm.world.surface("shelf").height + 0.01:
-        raise PlanningError(f"the transport would sweep the box {lowest:.3f} m low over the shelf")
-    return PlaceMotions(transport, *leg.primitives)
+        raise PlanningError(f"the carry would sweep the box {lowest:.3f} m low over the shelf")
+    return PlaceMotions(carry, *leg.primitives)
 
 
 def plan_move(

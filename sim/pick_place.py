@@ -13,8 +13,8 @@ with every joint at least 5 % of its range away from its limits for some grasp y
 
 The episode is the pick-and-place sequence (:data:`~besman.sim.manipulation.PICK_STEPS` and
 ``PLACE_STEPS``) of joint-space movement primitives planned by :mod:`besman.sim.manipulation` and executed
-by the Ruckig executor: open the gripper, approach above the object, descend, close (a grasp is required),
-lift, transport above the place, set down, release, retreat. theta tunes the plan
+by the Ruckig executor: open the gripper, reach above the object, descend, close (a grasp is required),
+lift, carry above the place, set down, release, retreat. theta tunes the plan
 (:class:`~besman.sim.manipulation.PickPlacePlan`); ``default_theta()`` is the hand-made plan.
 
 Success: the box was lifted at least 5 cm and carried in the hand until the release (not dropped), then

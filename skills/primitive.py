@@ -62,7 +62,7 @@ class MovementPrimitive:
 
     Attributes:
         dmp: the primitive: a joint-space :class:`DMP` or a :class:`CartesianDMP` (the kinds that are saved).
-        name: a name people use for it ("approach", "throw").
+        name: a name people use for it ("reach", "throw").
         space: "joint" or "cartesian" (must match the DMP's kind).
         robot: the robot it is for (``besman.robots.available()``), if any.
         group: the joint group it drives (joint space), if any.

@@ -26,7 +26,7 @@ def test_version_and_help(capsys):
 def test_robots_lists_the_models(capsys):
     code, out, _ = run_cli(capsys, "robots")
     assert code == 0
-    assert [line.split("\t")[0] for line in out.splitlines()] == ["aila", "pa10", "ur5e"]
+    assert [line.split("\t")[0] for line in out.splitlines()] == ["aila", "openarm", "pa10", "ur5e"]
 
 
 def test_robots_show_json_is_the_joint_table(capsys):
@@ -57,7 +57,7 @@ def test_robots_show_prints_a_table(capsys):
 def test_unknown_robot_is_a_clear_error(capsys):
     code, _, err = run_cli(capsys, "robots", "show", "r2d2")
     assert code == 2
-    assert "unknown robot 'r2d2'; available: aila, pa10" in err
+    assert "unknown robot 'r2d2'; available: aila, openarm, pa10, ur5e" in err
     assert "Traceback" not in err
 
 

@@ -170,7 +170,7 @@ def test_a_pool_for_another_robot_or_other_settings_is_refused_and_kept(two_reco
     assert _snapshot(out) == before
     with pytest.raises(LearnError, match=r"robot 'pa10': learning refines the blocks in the robot's"):
         learn(two_recordings, out, LearnSettings(robot="pa10"), progress=False)
-    with pytest.raises(LearnError, match=r"robot: unknown robot 'r2d2'; available: aila, pa10, ur5e"):
+    with pytest.raises(LearnError, match=r"robot: unknown robot 'r2d2'; available: aila, openarm, pa10, ur"):
         learn(two_recordings, out, LearnSettings(robot="r2d2"), progress=False)
 
 

@@ -64,7 +64,7 @@ def test_a_robot_folder_loads_by_path(tmp_path):
 
 
 def test_unknown_robot_lists_the_available_ones():
-    with pytest.raises(ValueError, match=r"unknown robot 'r2d2'; available: aila, pa10"):
+    with pytest.raises(ValueError, match=r"unknown robot 'r2d2'; available: aila, openarm, pa10, ur5e"):
         robots.load("r2d2")
 
 

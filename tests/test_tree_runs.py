@@ -55,7 +55,7 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
     assert result["ticks"] == summary["ticks"] == len(records)
     assert records[-1]["time"] == pytest.approx(summary["sim_time_s"], abs=0.02)
     writes = [change["key"] for record in records for change in record["blackboard"]]
-    assert "/grasp/approach" in writes and "/place/transport" in writes
+    assert "/grasp/reach" in writes and "/place/carry" in writes
 
 
 @pytest.mark.slow

@@ -129,21 +129,19 @@ def test_a_template_is_instantiated_from_the_blackboard_and_executed(executor):
 
 @pytest.mark.slow
 def test_grasp_then_place_recovers_from_a_slip(executor):
-    """The box is pulled out of the hand during the transport: the guard fails the placement, the retry
+    """The box is pulled out of the hand during the carry: the guard fails the placement, the retry
     finds the box not held, grasps it where it now lies and places it."""
     set_task_values({"place": [0.54, -0.41]})
     root = grasp_then_place()
     runner = Runner(root, executor)
     py_trees.trees.setup(root, executor=executor)
-    slipped, transport_ticks = False, 0
+    slipped, carry_ticks = False, 0
     status = Status.RUNNING
     while status is Status.RUNNING and executor.time < 60:
         root.tick_once()
         status = root.status
-        transport_ticks += any(
-            node.name == "transport" and node.status is Status.RUNNING for node in root.iterate()
-        )
-        if transport_ticks == 25 and not slipped:  # half a second into the transport, the box in the air
+        carry_ticks += any(node.name == "carry" and node.status is Status.RUNNING for node in root.iterate())
+        if carry_ticks == 25 and not slipped:  # half a second into the carry, the box in the air
             assert executor.hand.holds("box")
             executor.world.place_on("box", "table", 0.50, -0.12)  # out of the hand, back on the table
             slipped = True

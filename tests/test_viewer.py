@@ -409,12 +409,12 @@ def test_overlays_and_the_tree_panel_follow_a_template_run():
     runner, _ = tabletop_run(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, seed=0)
     arm, box = runner.executor.arm, runner.executor.world.objects["box"]
     taus = np.array([[0.5, -0.12], [0.6, -0.12], [0.5, 0.0], [0.6, 0.0]])
-    approaches = [plan_pick(arm, arm.measured().copy(), box, tau, PickPlacePlan()).approach for tau in taus]
+    reaches = [plan_pick(arm, arm.measured().copy(), box, tau, PickPlacePlan()).reach for tau in taus]
     template = SkillTemplate(
-        "approach",
-        approaches[0],
+        "reach",
+        reaches[0],
         taus,
-        [p.theta for p in approaches],
+        [p.theta for p in reaches],
         TaskBounds(("x", "y"), (0.45, -0.2), (0.65, 0.05)),
         prior_spread=0.1,
     )

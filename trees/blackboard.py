@@ -11,16 +11,17 @@ key (:mod:`besman.trees.base`). Defaults:
 - ``/<ns>/<field>`` - the current item's fields, written by ``ForEach`` (namespace ``<ns>``) before each run
   of its child (``/sort/object``, ``/sort/target``).
 - ``/<ns>/object_position`` - (x, y, z) of the object; ``PerceiveObject`` writes, ``PlanGrasp`` reads.
-- ``/<ns>/approach``, ``/<ns>/descend``, ``/<ns>/lift`` - movement primitives; ``PlanGrasp`` writes, the
+- ``/<ns>/reach``, ``/<ns>/descend``, ``/<ns>/lift`` - movement primitives; ``PlanGrasp`` writes, the
   ``ExecutePrimitive`` leaves of the grasp subtree read.
 - ``/<ns>/target`` - (x, y) or (x, y, z); the tree's author or a remap provides it, ``PlanPlace`` and
   ``ObjectAt`` read it.
-- ``/<ns>/transport``, ``/<ns>/place``, ``/<ns>/retreat`` - movement primitives; ``PlanPlace`` writes, the
+- ``/<ns>/carry``, ``/<ns>/place``, ``/<ns>/retreat`` - movement primitives; ``PlanPlace`` writes, the
   place subtree's ``ExecutePrimitive`` leaves read.
 - ``/<ns>/tau`` - task parameters; provided by the author or a remap, read by ``InstantiateSkillTemplate``.
 - ``/<ns>/primitive`` - a movement primitive; ``InstantiateSkillTemplate`` writes, ``ExecutePrimitive`` reads.
 - ``/<ns>/configuration`` - joint values; provided by the author or a remap, read by ``AtPose``.
-- ``/<ns>/home`` - a movement primitive back to the home configuration; ``PlanReturn`` writes, the return
+- ``/<ns>/goal`` - a hand pose ``{position, yaw}``; a remap (``/task/ready``) provides it, ``PlanMove`` reads.
+- ``/<ns>/return`` - a movement primitive back to the home configuration; ``PlanReturn`` writes, the return
   subtree's ``ExecutePrimitive`` reads.
 
 :func:`set_task_values` writes the ``/task`` values of a run.

@@ -10,7 +10,7 @@ same seed gives the same configuration and the same run. ``besman demo --list`` 
 - ``grasp-then-place``: the robot (AILA by default; ``--robot NAME``) takes the box from the table to the
   shelf (without a seed: the README's configuration on AILA, the middle of the layout's areas elsewhere).
 - ``sort``: three boxes, each to its own place on the shelf, in a loop over the blackboard's list of objects
-  (:class:`~besman.trees.loops.ForEach`); one box is taken out of the hand during its transport and set down
+  (:class:`~besman.trees.loops.ForEach`); one box is taken out of the hand during its carry and set down
   elsewhere on the table, and the tree grasps it again. Any robot with a tabletop layout.
 - ``handover``: a two-arm robot's (AILA by default; ``--robot openarm``) left arm picks a bar from the
   table's left side at one end while the right arm gets ready (in parallel), presents it in front of the body
@@ -176,7 +176,7 @@ SORT_OBJECTS = (
 )
 # Each box's own place on the shelf, from the middle of the layout's place area, 14-15 cm apart (the open
 # hand spans 9 cm, plus the fingers). The carried box clears the shelf by 6 cm, as high as a box that
-# stands there, so the far place is filled first and no transport passes over a placed box. (On AILA:
+# stands there, so the far place is filled first and no carry passes over a placed box. (On AILA:
 # blue (0.52, -0.50), red (0.45, -0.37), green (0.60, -0.37).)
 SORT_OFFSETS = {"blue": (-0.015, -0.09), "red": (-0.085, 0.04), "green": (0.065, 0.04)}
 # Where the boxes stand, from the layout's object area: 2 cm farther and 1 cm more to the right (on AILA:

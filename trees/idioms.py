@@ -4,9 +4,9 @@ Each subtree keeps its blackboard in one skill namespace; its planning leaf writ
 :class:`~besman.trees.leaves.ExecutePrimitive` leaves read, wired by the planning leaf's own role keys.
 
 - :func:`grasp` - perceive, plan, then pick and place's grasp steps (``PICK_STEPS`` of
-  :mod:`besman.sim.manipulation`: open, approach, descend, close on the object - a grasp is required - and
+  :mod:`besman.sim.manipulation`: open, reach, descend, close on the object - a grasp is required - and
   lift), check the grasp; retried from fresh perception when it fails.
-- :func:`place` - plan, then the place steps (``PLACE_STEPS``: transport and set down while a guard checks
+- :func:`place` - plan, then the place steps (``PLACE_STEPS``: carry and set down while a guard checks
   that the object stays in the hand, release, retreat), check that the object is at the target.
 - :func:`return_home` - the learned return to the robot's home configuration.
 - :func:`grasp_then_place` - the two, retried: if the object slips out of the hand, the retry finds it not
@@ -47,7 +47,7 @@ def grasp(
 ) -> py_trees.behaviour.Behaviour:
     """A subtree that grasps ``object`` (a name, or a key holding one) with ``arm`` (default: the executor's
     own), ``offset`` from its centre, and lifts it; up to ``attempts`` tries from fresh perception. With a
-    ``pool`` and a ``template``, the approach is the template's (see :class:`PlanGrasp`)."""
+    ``pool`` and a ``template``, the reach is the template's (see :class:`PlanGrasp`)."""
     remap = _checked(name, remap or {}, PlanGrasp)
     primitives = PlanGrasp.role_keys(namespace, remap)
     steps = py_trees.composites.Sequence(
@@ -98,7 +98,7 @@ def place(
     arm: str | None = None,
 ) -> py_trees.behaviour.Behaviour:
     """A subtree that puts the held ``object`` down at the target (role ``target``, or the key ``target``)
-    with ``arm``. With a ``pool`` and a ``template``, the transport is the template's (see
+    with ``arm``. With a ``pool`` and a ``template``, the carry is the template's (see
     :class:`PlanPlace`)."""
     own_remap = _checked(name, remap or {}, PlanPlace)
     remap = own_remap | ({"target": target} if target is not None else {})
@@ -182,7 +182,7 @@ def return_home(
             PlanReturn(
                 "plan return", pool=pool, template=template, namespace=namespace, remap={"target": target}
             ),
-            ExecutePrimitive("return", remap={"primitive": keys["home"]}),
+            ExecutePrimitive("return", remap={"primitive": keys["return"]}),
         ],
     )
     tree.besman_spec = {

@@ -1,14 +1,14 @@
 """Perception and planning leaves for pick and place: where the object is, and the primitives to move it.
 
 - :class:`PerceiveObject` writes an object's current position (simulated perception) to ``object_position``.
-- :class:`PlanGrasp` reads ``object_position`` and writes the ``approach``, ``descend`` and ``lift``
+- :class:`PlanGrasp` reads ``object_position`` and writes the ``reach``, ``descend`` and ``lift``
   primitives planned from the robot's current commanded state (:func:`besman.sim.manipulation.plan_pick`).
-- :class:`PlanPlace` reads the ``target`` (x, y) and writes ``transport``, ``place`` and ``retreat``.
+- :class:`PlanPlace` reads the ``target`` (x, y) and writes ``carry``, ``place`` and ``retreat``.
 - :class:`PlanReturn` writes ``home``, a learned return to the robot's home configuration.
 - :class:`PlanMove` writes ``motion``: the hand to a position, straight up, or the arm home (presenting an
   object to the other hand, letting go of it, making room).
 
-The approach, the transport and the return can come from skill templates learned from people
+The reach, the carry and the return can come from skill templates learned from people
 (:mod:`besman.learning.pipeline`), instantiated for the tau the leaf perceives and refined online where the
 template is unsure.
 
@@ -63,7 +63,7 @@ class _Plan(SimulationBehaviour):
     """A planning leaf: in one tick, plans from the robot's commanded configuration and the (x, y) in its
     ``source`` role with its ``planner``, and writes the primitives to its other roles.
 
-    With a ``pool`` and a ``template`` name, the big move (approach or transport) is the template's
+    With a ``pool`` and a ``template`` name, the big move (reach or carry) is the template's
     instance for the task tau the leaf perceives - a learned primitive moved to the planned end points -
     instead of a point-to-point move. With ``refine_above`` as well, an instance whose template is less sure
     of tau than that (:func:`besman.learning.online.uncertainty`) is first refined by at most 25 rollouts in
@@ -173,7 +173,7 @@ class _Plan(SimulationBehaviour):
 
 
 class PlanGrasp(_Plan):
-    """Plans approach, descend and lift for the object at ``object_position``, grasped ``offset`` (x, y in
+    """Plans reach, descend and lift for the object at ``object_position``, grasped ``offset`` (x, y in
     m, default its centre) from its centre: where it stands on the table or, held by another hand, in the
     air."""
 
@@ -183,7 +183,7 @@ class PlanGrasp(_Plan):
     planner = plan_pick
     roles: ClassVar = {
         "object_position": Access.READ,
-        "approach": Access.WRITE,
+        "reach": Access.WRITE,
         "descend": Access.WRITE,
         "lift": Access.WRITE,
     }
@@ -223,14 +223,14 @@ class PlanGrasp(_Plan):
 
 
 class PlanPlace(_Plan):
-    """Plans transport, place and retreat to the ``target`` (x, y) from the current configuration."""
+    """Plans carry, place and retreat to the ``target`` (x, y) from the current configuration."""
 
     source = "target"
     block = "carry"
     planner = plan_place
     roles: ClassVar = {
         "target": Access.READ,
-        "transport": Access.WRITE,
+        "carry": Access.WRITE,
         "place": Access.WRITE,
         "retreat": Access.WRITE,
     }
@@ -257,10 +257,10 @@ class PlanPlace(_Plan):
 
 
 class PlanReturn(SimulationBehaviour):
-    """Writes ``home``: the template's return to the robot's home configuration for the place ``target``
+    """Writes ``return``: the template's return to the robot's home configuration for the place ``target``
     (its tau), moved to start where the arm is now."""
 
-    roles: ClassVar = {"target": Access.READ, "home": Access.WRITE}
+    roles: ClassVar = {"target": Access.READ, "return": Access.WRITE}
     parameters: ClassVar = {"pool": "pool", "template": "str"}
 
     def __init__(
@@ -289,7 +289,7 @@ class PlanReturn(SimulationBehaviour):
         except ValueError as error:
             self.feedback_message = str(error)
             return Status.FAILURE
-        self.blackboard.set("home", primitive, overwrite=True)
+        self.blackboard.set("return", primitive, overwrite=True)
         self.feedback_message = f"planned the return home from template {self.template!r}"
         return Status.SUCCESS
 
