@@ -29,7 +29,7 @@ import numpy as np
 
 from besman.robots.description import TabletopLayout
 from besman.sim.arm import Arm
-from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
+from besman.sim.evaluation import BatchedTask, Evaluation
 from besman.sim.executor import Executor
 from besman.sim.manipulation import (
     DEFAULT_PLAN,
@@ -50,7 +50,6 @@ from besman.sim.world import DEFAULT_BOX, World, tabletop_world
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
 from besman.skills.tasks import TaskBounds
-from besman.skills.validation import finite_array
 
 # Each block's task parameters: the columns of the pick-and-place tau that move its end points.
 BLOCK_PARAMETERS = {
@@ -288,7 +287,7 @@ class BlockTaskConfig:
         return BlockTask(self)
 
 
-class BlockTask:
+class BlockTask(BatchedTask):
     """Rollouts of one block for thetas of its primitive (the weights matter: the end points are planned
     per tau) in block taus; rewards by :class:`Reward`, details :class:`BlockOutcome`."""
 
@@ -307,16 +306,9 @@ class BlockTask:
             self._starts[key] = prepare(self.world, self.config.block, key)
         return self._starts[key]
 
-    def evaluate(self, thetas, taus, *, backend: str = "threads") -> Evaluation:
-        check_backend(backend)
-        thetas = finite_array("theta", thetas)
-        thetas = thetas[None] if thetas.ndim == 1 else thetas
-        taus = self.bounds.check(taus, n=len(thetas))
-        if thetas.shape[1] != self.shape.theta.size:
-            raise InputError(f"thetas must have {self.shape.theta.size} entries, got {thetas.shape[1]}")
-        if backend == "ray":
-            return evaluate_on_ray(self.config, thetas, taus)
-        return evaluate_in_processes(self.config, thetas, taus)
+    @property
+    def n_params(self) -> int:
+        return self.shape.theta.size
 
     def evaluate_locally(self, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
         details = []

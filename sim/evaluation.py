@@ -1,9 +1,10 @@
 """Batched evaluation of candidates, on all local cores or spread over a Ray cluster.
 
 A task evaluates N parameter vectors theta (one per candidate) in task instances tau and returns an
-:class:`Evaluation`: one reward per candidate and one detail record per rollout. Tasks implement
-``evaluate_locally(thetas, taus)`` (their work in this process) and are described by a picklable
-configuration whose ``build()`` makes the task anywhere. On top of that:
+:class:`Evaluation`: one reward per candidate and one detail record per rollout. Every task is a
+:class:`BatchedTask`: it implements ``evaluate_locally(thetas, taus)`` (its work in this process), is
+described by a picklable configuration whose ``build()`` makes the task anywhere, and inherits the one
+``evaluate`` that checks a batch and runs it. On top of that:
 
 - ``backend="threads"`` (default) uses every local core. Open-loop tasks run their rollouts in MuJoCo's C
   rollout on its thread pool; closed-loop tasks, whose control runs in Python and would serialise on the
@@ -23,11 +24,13 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import cache
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
 from besman.skills.errors import InputError
+from besman.skills.tasks import TaskBounds
+from besman.skills.validation import finite_array
 
 BACKENDS = ("threads", "ray")
 
@@ -56,6 +59,49 @@ class TaskConfig(Protocol):
 def check_backend(backend: str) -> None:
     if backend not in BACKENDS:
         raise InputError(f"backend must be one of {BACKENDS}, got {backend!r}")
+
+
+class BatchedTask:
+    """What every simulated task shares: :meth:`evaluate` checks a batch before any work (finite thetas of
+    ``n_params`` entries each, each one a candidate the task can run by :meth:`check_theta`, taus in the
+    task's box) and runs it on the backend.
+
+    A task sets ``config`` (its picklable configuration) and ``bounds`` (tau's box), has ``n_params`` and
+    implements ``evaluate_locally``; ``in_processes`` says where its local work runs: in worker processes
+    (closed-loop control written in Python) or here (MuJoCo's threaded rollouts).
+    """
+
+    config: TaskConfig
+    bounds: TaskBounds
+    n_params: int
+    in_processes: ClassVar[bool] = True
+
+    def check_theta(self, theta: np.ndarray) -> None:
+        """Raises an :class:`InputError` for a candidate the task cannot run (default: none)."""
+
+    def checked(self, thetas, taus) -> tuple[np.ndarray, np.ndarray]:
+        """Thetas (N, n_params) and taus (N, d) from one or N of each, checked."""
+        thetas = finite_array("theta", thetas)
+        thetas = thetas[None] if thetas.ndim == 1 else thetas
+        if thetas.ndim != 2 or thetas.shape[1] != self.n_params:
+            raise InputError(f"theta must have {self.n_params} entries, got shape {thetas.shape[1:]}")
+        for theta in thetas:
+            self.check_theta(theta)
+        return thetas, self.bounds.check(taus, n=len(thetas))
+
+    def evaluate(self, thetas, taus, *, backend: str = "threads") -> Evaluation:
+        """Rewards (N,) and one detail per rollout for thetas (N, n_params) or (n_params,) in taus (N, d) or
+        (d,); the same inputs give the same results on every backend."""
+        check_backend(backend)
+        thetas, taus = self.checked(thetas, taus)
+        if backend == "ray":
+            return evaluate_on_ray(self.config, thetas, taus)
+        if self.in_processes:
+            return evaluate_in_processes(self.config, thetas, taus)
+        return self.evaluate_locally(thetas, taus)
+
+    def evaluate_locally(self, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
+        raise NotImplementedError
 
 
 _TASKS: dict[Any, Any] = {}  # per worker process: configuration -> built task

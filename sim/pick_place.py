@@ -33,7 +33,7 @@ import numpy as np
 
 import besman.robots as robots
 from besman.robots.description import TabletopLayout
-from besman.sim.evaluation import Evaluation, check_backend, evaluate_in_processes, evaluate_on_ray
+from besman.sim.evaluation import BatchedTask, Evaluation
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.manipulation import (
     PICK_STEPS,
@@ -50,7 +50,6 @@ from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionSta
 from besman.sim.world import DEFAULT_BOX, GraspableObject, World, tabletop_world
 from besman.skills.errors import InputError
 from besman.skills.tasks import TaskBounds
-from besman.skills.validation import finite_array
 
 
 def pick_place_bounds(robot: str | TabletopLayout = "aila") -> TaskBounds:
@@ -98,8 +97,10 @@ class PickPlaceConfig:
         return PickPlaceTask(self)
 
 
-class PickPlaceTask:
-    """The pick-and-place task; see the module documentation."""
+class PickPlaceTask(BatchedTask):
+    """The pick-and-place task; see the module documentation. ``evaluate(thetas (N, 6), taus (N, 4))``:
+    reward = -placement error (m) on success, else -1; details are :class:`PickPlaceDetail`; the episodes
+    run in worker processes (the control loop is Python: threads would wait on each other)."""
 
     def __init__(self, config: PickPlaceConfig = PickPlaceConfig()) -> None:
         self.config = config
@@ -122,20 +123,8 @@ class PickPlaceTask:
         plan = PickPlacePlan.from_theta(self.default_theta() if theta is None else theta)
         return run_episode(world or self.world, self.config.item, tau, plan)
 
-    def evaluate(self, thetas, taus, *, backend: str = "threads") -> Evaluation:
-        """Episodes for thetas (N, 6) and taus (N, 4): reward = -placement error (m) on success, else -1;
-        details are :class:`PickPlaceDetail`. With ``backend="threads"`` the episodes run on all local
-        cores in worker processes (the control loop is Python: threads would wait on each other), with
-        ``"ray"`` on a Ray cluster."""
-        check_backend(backend)
-        thetas = finite_array("theta", thetas)
-        thetas = thetas[None] if thetas.ndim == 1 else thetas
-        for theta in thetas:
-            PickPlacePlan.from_theta(theta)  # reject bad plans before any work starts
-        taus = self.bounds.check(taus, n=len(thetas))
-        if backend == "ray":
-            return evaluate_on_ray(self.config, thetas, taus)
-        return evaluate_in_processes(self.config, thetas, taus)
+    def check_theta(self, theta: np.ndarray) -> None:
+        PickPlacePlan.from_theta(theta)  # a plan outside its valid ranges is refused before any work
 
     def evaluate_locally(self, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
         """The episodes one after the other in this process, in the task's own world."""

@@ -3,8 +3,9 @@ built - the one place the command line, the experiments, learning and the trees 
 
 A :class:`TaskKind` says what a task is independently of the robot it runs on: a name, one line on what it
 does and what counts as success, which robots it fits (from their descriptions), the robot it runs on by
-default, and - for a robot - its box of task parameters tau and the task object itself (with ``bounds``,
-``evaluate(thetas, taus)`` and ``episode``). Pick and place takes its box from the robot's tabletop layout,
+default, and - for a robot - its box of task parameters tau and the task object itself, a
+:class:`~besman.sim.evaluation.BatchedTask` (``bounds``, the one batched ``evaluate(thetas, taus)``, and
+``episode``). Pick and place takes its box from the robot's tabletop layout,
 so it has one box per robot; the throwing tasks belong to the PA-10.
 
 Adding a task is adding one entry to :data:`TASKS`.

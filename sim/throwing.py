@@ -34,12 +34,13 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import ClassVar
 
 import mujoco
 import numpy as np
 from mujoco import rollout
 
-from besman.sim.evaluation import Evaluation, check_backend, evaluate_on_ray
+from besman.sim.evaluation import BatchedTask, Evaluation, check_backend
 from besman.sim.world import throwing_world
 from besman.skills import DMP, DMPSettings, quaternion
 from besman.skills.errors import InputError
@@ -109,8 +110,10 @@ class ThrowDetail:
     failure: str | None
 
 
-class ThrowingTask:
+class ThrowingTask(BatchedTask):
     """The PA-10 ball-throwing task; see the module documentation."""
+
+    in_processes: ClassVar[bool] = False  # open loop: MuJoCo's rollouts on its own threads, here
 
     def __init__(self, config: ThrowingConfig | None = None, **overrides) -> None:
         config = config or ThrowingConfig(**overrides)
@@ -268,15 +271,7 @@ class ThrowingTask:
             broken = ~np.isfinite(thetas).all(axis=1) if thetas.ndim == 2 else np.zeros(0, dtype=bool)
             if broken.any():
                 return self._with_broken(thetas, taus, broken, backend)
-        thetas = finite_array("theta", thetas)
-        if thetas.ndim == 1:
-            thetas = thetas[None]
-        if thetas.ndim != 2 or thetas.shape[1] != self.n_params:
-            raise InputError(f"theta must have {self.n_params} entries, got shape {thetas.shape[1:]}")
-        taus = self.bounds.check(taus, n=len(thetas))
-        if backend == "ray":
-            return evaluate_on_ray(self.config, thetas, taus)
-        return self.evaluate_locally(thetas, taus)
+        return super().evaluate(thetas, taus, backend=backend)
 
     def _with_broken(self, thetas: np.ndarray, taus, broken: np.ndarray, backend: str) -> Evaluation:
         """Evaluates the finite candidates and gives the broken ones the failure penalty, in order."""

@@ -316,10 +316,11 @@ def test_an_interrupted_learn_resumes_to_the_same_pool(small_pool, tmp_path):
     deadline = time.monotonic() + 300
     while not list((out / "work" / "refined").glob("*.json")) and time.monotonic() < deadline:
         time.sleep(0.2)
-    process.send_signal(signal.SIGINT)  # mid-refinement: one task done, the next running
+    process.send_signal(signal.SIGINT)  # mid-refinement: one task done, the others running
     process.wait(timeout=300)  # a hang guard: on a loaded machine the workers end their rollouts first
     done = list((out / "work" / "refined").glob("*.json"))
-    assert 1 <= len(done) < 6 and not (out / "reach.json").exists()
+    # Stopped before the templates: what the running workers finished is kept (all of it, on a busy machine).
+    assert len(done) >= 1 and not (out / "reach.json").exists()
     finished = {p.name: p.read_bytes() for p in done}
     subprocess.run(command, check=True, capture_output=True)
     for name, content in finished.items():  # finished work was kept, not redone

@@ -21,6 +21,7 @@ key (:mod:`besman.trees.base`). Defaults:
 - ``/<ns>/primitive`` - a movement primitive; ``InstantiateSkillTemplate`` writes, ``ExecutePrimitive`` reads.
 - ``/<ns>/configuration`` - joint values; provided by the author or a remap, read by ``AtPose``.
 - ``/<ns>/goal`` - a hand pose ``{position, yaw}``; a remap (``/task/ready``) provides it, ``PlanMove`` reads.
+- ``/<ns>/shape`` - a learned return (``InstantiateSkillTemplate`` writes it), read by ``PlanReturn``.
 - ``/<ns>/return`` - a movement primitive back to the home configuration; ``PlanReturn`` writes, the return
   subtree's ``ExecutePrimitive`` reads.
 

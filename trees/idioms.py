@@ -27,8 +27,15 @@ from besman.sim.manipulation import PICK_STEPS, PLACE_STEPS, PickPlacePlan
 from besman.skills.errors import InputError
 from besman.trees.base import RoleBehaviour
 from besman.trees.conditions import ObjectAt, ObjectGrasped
-from besman.trees.leaves import ExecutePrimitive, Gripper
-from besman.trees.manipulation import DEFAULT_PLAN, PerceiveObject, PlanGrasp, PlanPlace, PlanReturn
+from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
+from besman.trees.manipulation import (
+    DEFAULT_PLAN,
+    PerceiveObject,
+    PlanGrasp,
+    PlanPlace,
+    PlanReturn,
+    check_template,
+)
 
 
 def grasp(
@@ -172,16 +179,22 @@ def return_home(
     namespace: str = "return",
     target: str = "/task/place",
 ) -> py_trees.behaviour.Behaviour:
-    """A subtree that plans the template's return to the home configuration (tau: the place ``target``)
-    and executes it."""
-    keys = PlanReturn.role_keys(namespace, {"target": target})
+    """A subtree that instantiates the ``template`` of ``pool`` for the place ``target`` (its tau), fits the
+    primitive between where the arm is and the home configuration, and executes it."""
+    check_template(name, pool, template)
+    keys = PlanReturn.role_keys(namespace, {})
     tree = py_trees.composites.Sequence(
         name,
         memory=True,
         children=[
-            PlanReturn(
-                "plan return", pool=pool, template=template, namespace=namespace, remap={"target": target}
+            InstantiateSkillTemplate(
+                "instantiate return",
+                pool=pool,
+                template_name=template,
+                namespace=namespace,
+                remap={"tau": target, "primitive": keys["shape"]},
             ),
+            PlanReturn("plan return", namespace=namespace),
             ExecutePrimitive("return", remap={"primitive": keys["return"]}),
         ],
     )

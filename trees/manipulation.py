@@ -4,7 +4,7 @@
 - :class:`PlanGrasp` reads ``object_position`` and writes the ``reach``, ``descend`` and ``lift``
   primitives planned from the robot's current commanded state (:func:`besman.sim.manipulation.plan_pick`).
 - :class:`PlanPlace` reads the ``target`` (x, y) and writes ``carry``, ``place`` and ``retreat``.
-- :class:`PlanReturn` writes ``home``, a learned return to the robot's home configuration.
+- :class:`PlanReturn` reads ``shape`` (a learned return) and writes ``return``, fitted to end at home.
 - :class:`PlanMove` writes ``motion``: the hand to a position, straight up, or the arm home (presenting an
   object to the other hand, letting go of it, making room).
 
@@ -97,7 +97,7 @@ class _Plan(SimulationBehaviour):
         self.plan = plan
         self.use_object(object)
         self.pool, self.template, self.refine_above = pool, template, refine_above
-        _check_template(name, pool, template)
+        check_template(name, pool, template)
         if refine_above is not None and pool is None:
             raise InputError(f"{name}: refine_above needs a pool and a template")
         self.refinement: Refinement | None = None  # the last online refinement (for feedback and tests)
@@ -257,40 +257,31 @@ class PlanPlace(_Plan):
 
 
 class PlanReturn(SimulationBehaviour):
-    """Writes ``return``: the template's return to the robot's home configuration for the place ``target``
-    (its tau), moved to start where the arm is now."""
+    """Writes ``return``: the primitive ``shape`` (a learned return, as
+    :class:`~besman.trees.leaves.InstantiateSkillTemplate` writes it from the template for the place) moved
+    to start where the arm is now and to end at the robot's home configuration."""
 
-    roles: ClassVar = {"target": Access.READ, "return": Access.WRITE}
-    parameters: ClassVar = {"pool": "pool", "template": "str"}
+    roles: ClassVar = {"shape": Access.READ, "return": Access.WRITE}
 
-    def __init__(
-        self,
-        name: str,
-        *,
-        pool: Mapping[str, Any],
-        template: str,
-        namespace: str = "",
-        remap: Mapping[str, str] | None = None,
-    ):
+    def __init__(self, name: str, *, namespace: str = "", remap: Mapping[str, str] | None = None):
         super().__init__(name, namespace=namespace, remap=remap)
-        _check_template(name, pool, template)
-        self.pool, self.template = pool, template
         for role in self.roles:
             self.use(role)
 
     def update(self) -> Status:
         executor = self.executor
         arm = executor.arm
-        target = np.asarray(self.blackboard.get("target"), dtype=float)[:2]
+        if not self.blackboard.exists("shape"):
+            self.feedback_message = f"no primitive at {self.key('shape')}"
+            return Status.FAILURE
         try:
-            shape = self.pool[self.template].instantiate(target)
             home = executor.world.home(arm.qpos_indices)
-            primitive = shaped(shape, "return", executor.position, home, arm)
+            primitive = shaped(self.blackboard.get("shape"), "return", executor.position, home, arm)
         except ValueError as error:
             self.feedback_message = str(error)
             return Status.FAILURE
         self.blackboard.set("return", primitive, overwrite=True)
-        self.feedback_message = f"planned the return home from template {self.template!r}"
+        self.feedback_message = "planned the return home"
         return Status.SUCCESS
 
 
@@ -381,7 +372,8 @@ class PlanMove(SimulationBehaviour):
         return Status.SUCCESS
 
 
-def _check_template(name: str, pool: Mapping[str, Any] | None, template: str | None) -> None:
+def check_template(name: str, pool: Mapping[str, Any] | None, template: str | None) -> None:
+    """A learned motion's pool and template name, both or neither, the template in the pool (before work)."""
     if (pool is None) != (template is None):
         raise InputError(f"{name}: a learned motion needs both a pool and a template name")
     if pool is not None and template not in pool:
