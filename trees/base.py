@@ -12,7 +12,7 @@ and :meth:`RoleBehaviour.role_keys` say where a role lives, for messages and for
 Behaviours that touch the simulation (:class:`SimulationBehaviour`) get the
 :class:`~besman.sim.executor.Executor` in ``setup(executor=...)`` (``BehaviourTree.setup(executor=...)``
 passes it to every behaviour) and read the simulated clock from it, so timers run in simulated time. On a
-robot with several arms driven in lockstep (:meth:`~besman.sim.executor.Executor.add_arm`), ``arm`` names the
+robot with several arms driven in lockstep (``Executor(world, ("right", "left"))``), ``arm`` names the
 one a behaviour drives or looks at (default: the executor's own). A behaviour about an object takes its
 name, or a blackboard key (starting with ``/``) that holds the name when the behaviour runs, so one subtree
 can work through several objects (:class:`~besman.trees.loops.ForEach`).
