@@ -14,7 +14,7 @@ from besman.robots.description import DescriptionError, RobotDescription
 from besman.robots.gripper import Gripper
 from besman.robots.ik import IKResult, solve_ik
 from besman.robots.kinematics import Pose, forward_kinematics, site_pose
-from besman.robots.robot import JointGroup, Robot, RobotArm, available, compile_spec, describe, load
+from besman.robots.robot import JointGroup, Robot, RobotArm, available, choose, compile_spec, describe, load
 
 __all__ = [
     "DescriptionError",
@@ -27,6 +27,7 @@ __all__ = [
     "RobotDescription",
     "available",
     "build_spec",
+    "choose",
     "compile_spec",
     "describe",
     "forward_kinematics",

@@ -10,7 +10,7 @@ moves, where its tool is and how its gripper works.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -253,6 +253,17 @@ def describe(name: str) -> RobotDescription:
             raise UnknownNameError(f"unknown robot {name!r}; available: {', '.join(available())}")
         folder = ROBOTS_DIR / name
     return read_description(folder / DESCRIPTION_FILE)
+
+
+def choose(robot: str | None, default: str, fits: Callable[[RobotDescription], bool], what: str) -> str:
+    """``robot`` (None: ``default``) if ``fits`` its description; otherwise an error, before any work, saying
+    that ``what`` (a task, a demo) does not run on it and naming the robots it runs on (an unknown robot is
+    refused with the list of all)."""
+    robot = robot or default
+    if not fits(describe(robot)):
+        fitting = [name for name in available() if fits(describe(name))]
+        raise InputError(f"{what} does not run on {robot!r}; it runs on: {', '.join(fitting)}")
+    return robot
 
 
 def compile_spec(spec: mujoco.MjSpec, description: RobotDescription) -> mujoco.MjModel:

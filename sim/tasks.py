@@ -19,7 +19,7 @@ from typing import Any
 
 import besman.robots as robots
 from besman.robots import RobotDescription
-from besman.skills.errors import InputError, UnknownNameError
+from besman.skills.errors import UnknownNameError
 from besman.skills.tasks import TaskBounds
 
 
@@ -38,11 +38,7 @@ class TaskKind:
     def check_robot(self, robot: str | None) -> str:
         """``robot`` (default: the task's own) if the task fits it; otherwise an error naming the robots
         that fit."""
-        robot = robot or self.robot
-        if not self.fits(robots.describe(robot)):
-            fitting = [name for name in robots.available() if self.fits(robots.describe(name))]
-            raise InputError(f"task {self.name} does not run on {robot!r}; it runs on: {', '.join(fitting)}")
-        return robot
+        return robots.choose(robot, self.robot, self.fits, f"task {self.name}")
 
     def describe(self, robot: str | None = None) -> dict:
         """The task on ``robot`` as JSON-ready facts: name, robot, what it does, success, tau's box and (for

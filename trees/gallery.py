@@ -27,7 +27,7 @@ The tree files live in the source checkout (``examples/trees``), beside the pool
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -83,11 +83,7 @@ class Demo:
     def check_robot(self, robot: str | None) -> str:
         """``robot`` (default: the demo's own) if the demo runs on it; otherwise an error naming the robots
         it runs on, before any work."""
-        robot = robot or self.robot
-        if not self.fits(robots.describe(robot)):  # an unknown robot is refused with the list
-            fitting = [name for name in robots.available() if self.fits(robots.describe(name))]
-            raise InputError(f"demo {self.name} does not run on {robot!r}; it runs on: {', '.join(fitting)}")
-        return robot
+        return robots.choose(robot, self.robot, self.fits, f"demo {self.name}")
 
 
 def _two_hand_tabletop(robot: robots.RobotDescription) -> bool:
@@ -290,10 +286,6 @@ def _draw(rng: np.random.Generator, area) -> np.ndarray:
     return rng.uniform((x0, y0), (x1, y1)).round(4)
 
 
-def _hand_pose(pose) -> dict:
-    return {"position": list(pose.position), "yaw": pose.yaw}
-
-
 def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> DemoRun:
     layout = robots.describe(options["robot"]).tabletop.handover
     rng = np.random.default_rng(seed)
@@ -307,7 +299,7 @@ def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> D
     # bar, with it).
     right = Executor(world, ("right", "left"))
     contacts = ArmContacts(right, right.arm_executor("left"))
-    poses = {"ready": _hand_pose(layout.ready), "present": _hand_pose(layout.present)}
+    poses = {"ready": asdict(layout.ready), "present": asdict(layout.present)}
     set_task_values({"place": place, **poses})
     settings = {"bar": bar.tolist(), "place": place.tolist()}
 
