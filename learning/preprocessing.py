@@ -9,6 +9,7 @@ names the marker and its frames (bridging it would invent motion).
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,8 +50,25 @@ class SmoothedChannel:
         return np.linalg.norm(self.velocities, axis=1)
 
 
+# Each recording's smoothed markers while the recording lives: filterpy filters sample by sample (about 0.3 s
+# a marker of a 15 s recording), and segmentation, its contact signals, labelling and every setting a
+# benchmark tries ask for the same markers again. The arrays are read-only, so that no caller changes
+# another's.
+_SMOOTHED: weakref.WeakKeyDictionary[Demonstration, dict[tuple[str, SmoothingConfig], SmoothedChannel]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
 def smooth(demo: Demonstration, marker: str, config: SmoothingConfig = SmoothingConfig()) -> SmoothedChannel:
-    """Kalman filter + RTS smoother of one marker (see the module documentation)."""
+    """Kalman filter + RTS smoother of one marker (see the module documentation); computed once per
+    recording, marker and config."""
+    known = _SMOOTHED.setdefault(demo, {})
+    if (marker, config) not in known:
+        known[marker, config] = _smooth(demo, marker, config)
+    return known[marker, config]
+
+
+def _smooth(demo: Demonstration, marker: str, config: SmoothingConfig) -> SmoothedChannel:
     values = demo.channel(marker)
     dt = float(np.median(np.diff(demo.times)))
     for first, last in demo.gaps(marker):
@@ -74,6 +92,7 @@ def smooth(demo: Demonstration, marker: str, config: SmoothingConfig = Smoothing
         means, covariances, _, _ = kalman.batch_filter(measurements)
         smoothed, _, _, _ = kalman.rts_smoother(means, covariances)
         result[:, :, axis] = smoothed[:, :, 0].T
+    result.setflags(write=False)
     return SmoothedChannel(*result)
 
 

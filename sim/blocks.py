@@ -229,10 +229,12 @@ def rollout(world: World, start: BlockStart, shape: MovementPrimitive) -> BlockO
         executor.run(motion, timeout=TIMEOUT)
     except ValueError as error:  # a primitive that cannot start (e.g. of the wrong size)
         motion.finish(MotionStatus.FAILED, str(error))
-    commanded = executor.log.positions.copy()
+    # The block's own cycles: up to the one that decided it (a failure's chunk may have run on).
+    cycles = motion.ended
+    commanded = executor.log.positions[:cycles].copy()
     allowed = (item.name,) if start.block == "carry" else ()
     measures = dict(
-        duration=executor.time - began,
+        duration=(executor.log.times[cycles - 1] if cycles else began) - began,
         **hand_measures(arm, commanded, executor.config.control_period),
         limit_margin=arm.limit_margin(commanded) if len(commanded) else 0.0,
         end_margin=arm.limit_margin(np.array([start.start, start.goal])),

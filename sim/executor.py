@@ -28,6 +28,9 @@ from besman.sim.streaming import WORKING, JerkLimitedStream
 from besman.sim.world import World
 from besman.skills.errors import InputError, UnknownNameError
 
+# The longest chunk :meth:`Executor.run` runs (0.1 s at 500 Hz): what a failure can run on past its cycle.
+RUN_CHUNK = 50
+
 
 @dataclass(frozen=True)
 class ExecutorConfig:
@@ -191,16 +194,30 @@ class Executor:
 
     def run(self, motion: Motion, timeout: float = 30.0, observe: Callable[[], None] | None = None) -> Motion:
         """Runs ``motion`` to its end (or ``timeout`` seconds of simulated time) and returns it; ``observe``
-        is called after every control cycle."""
+        is called after every control cycle.
+
+        Without ``observe``, the cycles run in chunks (:meth:`advance`) inside which no motion of the arms
+        can succeed (``Motion.cycles_before_success``; at most :data:`RUN_CHUNK` cycles): a success ends on
+        the same cycle, in the same state, as it does cycle by cycle, at about half the cost. A failure is
+        decided on its own cycle (``Motion.ended``), but the physics has run on to the chunk's end, and
+        faults are checked at chunk ends."""
         self.start(motion)
         deadline = self.time + timeout
+        members = (self, *self.companions.values())
         while motion.status is MotionStatus.RUNNING:
-            if self.time >= deadline:
+            left = round((deadline - self.time) / self.config.control_period)
+            if left <= 0:
                 motion.finish(MotionStatus.FAILED, f"timed out after {timeout:g} s")
                 break
-            self.tick()
             if observe is not None:
+                self.tick()
                 observe()
+                continue
+            motions = [member.motion for member in members if member.motion is not None]
+            needed = [
+                m.cycles_before_success(self.config) for m in motions if m.status is MotionStatus.RUNNING
+            ]
+            self.advance(min(RUN_CHUNK, left, *needed))
         return motion
 
     def advance(self, cycles: int) -> MotionStatus:

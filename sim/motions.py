@@ -33,7 +33,7 @@ from besman.skills import MovementPrimitive, Trajectory
 from besman.skills.errors import InputError
 
 if TYPE_CHECKING:
-    from besman.sim.executor import Executor
+    from besman.sim.executor import Executor, ExecutorConfig
 
 AT_REST = 1e-6  # commanded speed and acceleration below which a command is at rest
 AT_GOAL = 1e-6  # commanded distance (rad or m) at which a command is at its goal
@@ -93,12 +93,15 @@ class Motion:
     status: MotionStatus = field(default=MotionStatus.RUNNING, init=False)
     message: str = field(default="", init=False)
     cycles: int = field(default=0, init=False)  # cycles commanded so far
+    ended: int = field(default=0, init=False)  # the cycle that decided the motion, once it has ended
     settled: int = field(default=0, init=False)  # consecutive cycles at the goal
     waited: int = field(default=0, init=False)  # cycles the command has been at the goal
     moves_gripper: ClassVar[bool] = False  # whether the chunk must record the gripper and the fingers
 
-    def finish(self, status: MotionStatus, message: str = "") -> MotionStatus:
+    def finish(self, status: MotionStatus, message: str = "", cycle: int | None = None) -> MotionStatus:
+        """Ends the motion, decided by its cycle ``cycle`` (None: the last one commanded)."""
         self.status, self.message = status, message
+        self.ended = self.cycles if cycle is None else cycle
         return status
 
     def begin(self, executor: Executor) -> None:
@@ -111,6 +114,16 @@ class Motion:
     def judge(self, executor: Executor, chunk: Chunk) -> None:
         """Goes through the chunk's cycles in order and ends the motion at the first that decides it."""
         raise NotImplementedError
+
+    def cycles_before_success(self, config: ExecutorConfig) -> int:
+        """The fewest cycles from now after which the motion could succeed (at least 1): a chunk that long
+        cannot pass a success (:meth:`Executor.run <besman.sim.executor.Executor.run>` runs such chunks).
+        1 unless the motion knows more."""
+        return 1
+
+    def _cycles_to_settle(self, config: ExecutorConfig) -> int:
+        """What :meth:`settle` needs at least: ``settle_cycles`` consecutive cycles at the goal."""
+        return max(1, config.settle_cycles - self.settled)
 
     # -- shared judgements, vectorised over a chunk --------------------------------------------------------
 
@@ -126,6 +139,7 @@ class Motion:
         self.finish(
             MotionStatus.FAILED,
             f"joint {joint} cannot follow its command ({behind.max():.3g} behind; blocked or in collision)",
+            chunk.first + row,
         )
 
     def settle(
@@ -145,7 +159,7 @@ class Motion:
         for row in range(rows):
             self.settled = self.settled + 1 if arrived[row] else 0
             if self.settled >= config.settle_cycles:
-                self.finish(MotionStatus.SUCCEEDED, "reached")
+                self.finish(MotionStatus.SUCCEEDED, "reached", chunk.first + row)
                 return
             if commanded_there[row]:
                 self.waited += 1
@@ -154,6 +168,7 @@ class Motion:
                     self.finish(
                         MotionStatus.FAILED,
                         f"joint {joint} stays {error[row].max():.3g} from its goal (blocked or in contact)",
+                        chunk.first + row,
                     )
                     return
 
@@ -205,6 +220,11 @@ class FollowReference(Motion):
         # At or past its end, come to rest at the reference's last position.
         return executor.stream.track_feasible(*self._rest)
 
+    def cycles_before_success(self, config: ExecutorConfig) -> int:
+        # The command reaches the reference's end at its last cycle; then the robot must settle there.
+        to_end = max(0, len(self._targets) - 1 - self.cycles - 1)
+        return to_end + self._cycles_to_settle(config)
+
     def judge(self, executor: Executor, chunk: Chunk) -> None:
         positions = self.reference.positions
         last = len(positions) - 1
@@ -224,6 +244,7 @@ class FollowReference(Motion):
             self.finish(
                 MotionStatus.FAILED,
                 f"the reference is faster than the limits allow ({joint} lags {lag[failure].max():.3g})",
+                chunk.first + failure,
             )
 
 
@@ -255,6 +276,9 @@ class MoveTo(Motion):
 
     def command(self, executor: Executor) -> ruckig.Result:
         return executor.stream.track(self.target)
+
+    def cycles_before_success(self, config: ExecutorConfig) -> int:
+        return self._cycles_to_settle(config)
 
     def judge(self, executor: Executor, chunk: Chunk) -> None:
         blocked = self.blocked_at(executor, chunk)
@@ -294,6 +318,9 @@ class GripperMotion(Motion):
         executor.gripper_stream.track_feasible(*self._target)
         return result
 
+    def cycles_before_success(self, config: ExecutorConfig) -> int:
+        return self._cycles_to_settle(config)  # the fingers settle over a window of settle_cycles
+
     def judge(self, executor: Executor, chunk: Chunk) -> None:
         blocked = self.blocked_at(executor, chunk)
         opening, speed = chunk.gripper[:, 0], chunk.gripper[:, 1]
@@ -310,9 +337,9 @@ class GripperMotion(Motion):
             if self.settled >= window and np.abs(fingers[at] - fingers[at - window]).max() <= allowed:
                 # Judged on the simulation as it is now (at most a chunk later): the fingers have settled.
                 if self.expect_grasp and not executor.hand.holds(self.grasp_object):
-                    self.finish(MotionStatus.FAILED, "the fingers closed on nothing")
+                    self.finish(MotionStatus.FAILED, "the fingers closed on nothing", chunk.first + row)
                 else:
-                    self.finish(MotionStatus.SUCCEEDED, "fingers settled")
+                    self.finish(MotionStatus.SUCCEEDED, "fingers settled", chunk.first + row)
                 return
         if blocked is not None:
             self.fail_blocked(executor, chunk, blocked)
@@ -326,5 +353,6 @@ class Stop(Motion):
         return executor.stream.brake()
 
     def judge(self, executor: Executor, chunk: Chunk) -> None:
-        if chunk.at_rest.any():
-            self.finish(MotionStatus.SUCCEEDED, "stopped")
+        rest = np.flatnonzero(chunk.at_rest)
+        if rest.size:
+            self.finish(MotionStatus.SUCCEEDED, "stopped", chunk.first + int(rest[0]))

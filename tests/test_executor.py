@@ -131,3 +131,50 @@ def _ik(executor, position, orientation, tolerance_ok=False):
     result = executor.arm.solve_ik(position, orientation, initial=executor.position, restarts=10)
     assert result.success or tolerance_ok, result.message
     return result.qpos
+
+
+def _chunked_and_cycle_by_cycle(make_motion, prepare=None, timeout=10.0):
+    """The same motion run twice from the same state: in chunks (``run`` without ``observe``) and cycle
+    by cycle (with an ``observe`` that does nothing)."""
+    runs = []
+    for observe in (None, lambda: None):
+        executor = Executor(tabletop_world())
+        if prepare is not None:
+            prepare(executor)
+        start = len(executor.log)
+        motion = executor.run(make_motion(executor), timeout=timeout, observe=observe)
+        runs.append((executor, motion, start))
+    return runs
+
+
+@pytest.mark.parametrize("kind", ["primitive", "move", "close", "blocked"])
+def test_a_run_in_chunks_ends_on_the_cycle_and_in_the_state_it_does_cycle_by_cycle(kind):
+    """``Executor.run`` chunks its cycles where no motion can succeed (``Motion.cycles_before_success``): a
+    success ends on the same cycle, in the same state, with the same log; a failure is decided on the same
+    cycle with the same message and log up to it (the chunk's physics may run on past it)."""
+
+    def into_the_table(executor):
+        target = _ik(executor, np.array([0.55, -0.1, 0.70]), top_down(0.0), tolerance_ok=True)
+        return MoveTo("into the table", target=target)
+
+    motions = {
+        "primitive": lambda executor: FollowPrimitive(
+            MovementPrimitive(
+                DMP(executor.arm.dofs, execution_time=1.5, goal=executor.position + SAFE_MOVE), "reach"
+            )
+        ),
+        "move": lambda executor: MoveTo("move", target=executor.position + 0.5 * SAFE_MOVE),
+        "close": lambda executor: GripperMotion("close", opening=0.0),
+        "blocked": into_the_table,
+    }
+    (chunked, fast, start), (by_cycle, slow, _) = _chunked_and_cycle_by_cycle(motions[kind])
+    assert (fast.status, fast.message, fast.ended) == (slow.status, slow.message, slow.ended)
+    assert (fast.status is MotionStatus.FAILED) == (kind == "blocked")
+    assert fast.ended > 50  # long enough for chunks
+    decided = start + fast.ended
+    np.testing.assert_array_equal(chunked.log.positions[:decided], by_cycle.log.positions[:decided])
+    np.testing.assert_array_equal(chunked.log.times[:decided], by_cycle.log.times[:decided])
+    if kind != "blocked":
+        assert len(chunked.log) == len(by_cycle.log) == decided
+        np.testing.assert_array_equal(chunked.world.data.qpos, by_cycle.world.data.qpos)
+        np.testing.assert_array_equal(chunked.world.data.qvel, by_cycle.world.data.qvel)
