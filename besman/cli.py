@@ -36,7 +36,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return args.handler(args)
     except KeyboardInterrupt:
-        print("besman: interrupted (a --log holds the run up to here)", file=sys.stderr)
+        resumes = args.command in ("learn", "experiment")  # their outputs keep each finished stage
+        note = "run it again to resume" if resumes else "a --log holds the run up to here"
+        print(f"besman: interrupted ({note})", file=sys.stderr)
         return 130
     except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError
         message = error.args[0] if isinstance(error, KeyError) and error.args else error

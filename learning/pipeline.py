@@ -66,7 +66,8 @@ from besman.sim.executor import Executor
 from besman.sim.world import tabletop_world
 from besman.skills import MovementPrimitive, SkillTemplate, SkillTemplatePool
 from besman.skills.errors import BesmanError
-from besman.skills.storage import read_json, sha256, write_atomically
+from besman.skills.storage import read_json, remove_temporaries, sha256, write_atomically
+from besman.skills.writer_lock import WriterLock
 
 SCHEMA_VERSION = 1
 KIND = "besman-learn"
@@ -234,6 +235,7 @@ class _Run:
         out, record_path = self.out, self.work / "learn.json"
         if out.exists() and not out.is_dir():
             raise LearnError(f"{out}: the output is a file, not a pool folder")
+        remove_temporaries(out)  # a learn killed mid-write left them
         if record_path.is_file():
             try:
                 previous = read_json(record_path, LearnError)
@@ -254,7 +256,8 @@ class _Run:
                     "--force starts over"
                 )
             shutil.rmtree(self.work)
-        elif out.is_dir() and any(out.iterdir()) and not force:
+        elif out.is_dir() and any(path.is_file() for path in out.rglob("*")) and not force:
+            # Files, not folders: a learn killed before it wrote its record leaves folders alone.
             raise LearnError(
                 f"{out}: the folder is not empty and not a pool learned by besman (--force writes into it)"
             )
@@ -480,19 +483,21 @@ def learn(
     Every input is checked before anything is written: the recordings (a folder with readable recordings
     that have the hand markers, and the examples' annotations) and the output (a file; a non-empty folder
     that is not a pool learned by besman, unless ``force``; a pool learned for another robot or from other
-    recordings or settings, unless ``force``, which then starts over). A rerun after an interruption resumes.
+    recordings or settings, unless ``force``, which then starts over). A rerun after an interruption resumes;
+    a second learn into ``out`` while one runs is refused (:class:`~besman.skills.writer_lock.WriterLock`).
     """
     settings.check()
-    run = _Run(Path(demos), Path(out), settings, progress)
-    run.claim_output(force)
-    movements = run.segmentations()
-    blocks = run.labels(movements)
-    shapes = run.shapes(blocks)
-    refined = run.refine(shapes)
-    templates = run.templates(shapes, refined)
-    from besman.learning.pipeline_plots import write_figures  # matplotlib only when it is needed
+    with WriterLock(out, "--out"):  # one learn per pool at a time
+        run = _Run(Path(demos), Path(out), settings, progress)
+        run.claim_output(force)
+        movements = run.segmentations()
+        blocks = run.labels(movements)
+        shapes = run.shapes(blocks)
+        refined = run.refine(shapes)
+        templates = run.templates(shapes, refined)
+        from besman.learning.pipeline_plots import write_figures  # matplotlib only when it is needed
 
-    figures = write_figures(run.out, run.demos, run.files, movements, blocks, refined)
+        figures = write_figures(run.out, run.demos, run.files, movements, blocks, refined)
     return LearnResult(run.out, templates, refined, figures)
 
 

@@ -65,9 +65,10 @@ from besman.sim.throwing import FAILURE_REWARD, ThrowingConfig, ThrowingTask
 from besman.skills import MovementPrimitive, zero_shot
 from besman.skills.errors import InputError
 from besman.skills.pool import SkillTemplatePool
-from besman.skills.storage import npz_bytes, read_json, read_npz, write_atomically
+from besman.skills.storage import npz_bytes, read_json, read_npz, remove_temporaries, write_atomically
 from besman.skills.template import SkillTemplate
 from besman.skills.template_models import SharedKernel
+from besman.skills.writer_lock import WriterLock
 
 SCHEMA_VERSION = 2
 ZERO_SHOT_METHODS = ("template", "per_dimension", "training_mean", "nearest_neighbour", "affine", "crkr")
@@ -166,6 +167,9 @@ class Experiment:
     # -- bookkeeping -------------------------------------------------------------------------------------
 
     def _claim_directory(self) -> None:
+        # The directory's one writer from here to the end of run() (or this process).
+        self._lock = WriterLock(self.directory, "--out").acquire()
+        remove_temporaries(self.directory)  # a run killed mid-write left them
         stored = self.directory / "work" / "config.json"
         config = json.loads(json.dumps({"schema_version": SCHEMA_VERSION, **asdict(self.config)}))
         if stored.exists():
@@ -528,6 +532,12 @@ class Experiment:
     def run(self) -> dict:
         """Runs (or resumes) every stage and writes results.json, fig5_top.png, fig5_bottom.png,
         fig_field.png and a pool (``pool/``) with the first seed's template of all K_max training tasks."""
+        try:
+            return self._run()
+        finally:
+            self._lock.release()
+
+    def _run(self) -> dict:
         started = time.monotonic()
         config, seeds = self.config, range(self.config.seeds)
         spreads = {method: self.spread(method) for method in SPREAD_METHODS}

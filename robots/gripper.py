@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from besman.robots.description import JointLimitSpec
+from besman.skills.errors import InputError
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,7 +69,7 @@ def measure_openings(robot, arm: str | None, commands, settle: float = 3.0) -> n
     arm = robot.arm(arm)
     gripper, model = arm.gripper, robot.model
     if gripper is None:
-        raise ValueError(f"robot {robot.name!r}: arm {arm.name!r} has no gripper")
+        raise InputError(f"robot {robot.name!r}: arm {arm.name!r} has no gripper")
     data = mujoco.MjData(model)
     openings = []
     for command in np.atleast_1d(commands):

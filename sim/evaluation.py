@@ -21,6 +21,9 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+import subprocess
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import cache
@@ -28,11 +31,13 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from besman.sim import reaper
 from besman.skills.errors import InputError
 from besman.skills.tasks import TaskBounds
 from besman.skills.validation import finite_array
 
 BACKENDS = ("threads", "ray")
+PARENT_CHECK_SECONDS = 0.5  # how often a worker process checks that its parent lives
 
 
 @dataclass(frozen=True)
@@ -121,7 +126,26 @@ def _chunks(count: int, workers: int) -> list[slice]:
 @cache
 def _process_pool(workers: int) -> ProcessPoolExecutor:
     # "spawn": a fresh interpreter per worker, safe with MuJoCo's and BLAS's threads (fork is not).
-    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+    return ProcessPoolExecutor(
+        workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_end_with_parent,
+        initargs=(os.getpid(),),
+    )
+
+
+def _end_with_parent(parent: int) -> None:
+    """Ends this worker process within a second of its parent's death, however the parent dies: a worker in
+    the middle of a chunk would otherwise run it to the end (minutes) after a ``kill -9``, burning the cores
+    a resumed run needs. A watcher thread, not the parent-death signal: that signal fires when the thread
+    that started the worker ends, not the process."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_CHECK_SECONDS)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="end-with-parent", daemon=True).start()
 
 
 def evaluate_in_processes(config: TaskConfig, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
@@ -138,6 +162,17 @@ def evaluate_in_processes(config: TaskConfig, thetas: np.ndarray, taus: np.ndarr
     return Evaluation.concatenate([part.result() for part in parts])
 
 
+_reapers: list[subprocess.Popen] = []  # the reaper of the Ray this process started (its pipe stays open)
+
+
+def _start_local_ray(ray) -> None:
+    """Starts a local Ray instance that ends with this process, however it ends (:mod:`besman.sim.reaper`)."""
+    mark = f"{os.getpid()}-{time.time_ns()}"
+    _reapers.append(reaper.start(mark))
+    os.environ[reaper.OWNER] = mark  # inherited by every process Ray starts
+    ray.init(include_dashboard=False, log_to_driver=False)
+
+
 def evaluate_on_ray(
     config: TaskConfig, thetas: np.ndarray, taus: np.ndarray, chunk_size: int | None = None
 ) -> Evaluation:
@@ -147,7 +182,7 @@ def evaluate_on_ray(
     except ImportError:
         raise InputError("backend='ray' needs Ray: pip install 'besman[distributed]'") from None
     if not ray.is_initialized():
-        ray.init(include_dashboard=False, log_to_driver=False)
+        _start_local_ray(ray)
     workers = max(1, int(ray.available_resources().get("CPU", 1)))
     parts = (
         _chunks(len(thetas), workers)

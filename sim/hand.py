@@ -30,7 +30,7 @@ class Hand:
 
     def _body(self, name: str) -> int:
         if name not in self._bodies:
-            self._bodies[name] = self.world.model.body(name).id
+            self._bodies[name] = self.world.object_body(name)
         return self._bodies[name]
 
     def touching(self, name: str) -> tuple[bool, bool]:

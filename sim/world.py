@@ -114,6 +114,11 @@ class World:
             )
         return self.model.joint(name).id
 
+    def object_body(self, name: str) -> int:
+        """The body id of object ``name``; an unknown name lists the world's objects."""
+        self._object_joint(name)
+        return self.model.body(name).id
+
     def surface(self, name: str) -> Surface:
         """The support ``name`` ("table", "shelf"); an unknown name lists the world's surfaces."""
         if name not in self.surfaces:

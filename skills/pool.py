@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from besman.skills.errors import BesmanError
+from besman.skills.errors import BesmanError, UnknownNameError
 from besman.skills.primitive import primitive_from_parts, primitive_parts
 from besman.skills.storage import (
     check_schema_version,
@@ -84,7 +84,7 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
 
     def __getitem__(self, name: str) -> SkillTemplate:
         if name not in self:
-            raise KeyError(name)
+            raise self._unknown(name)
         with self._lock(shared=True):
             manifest = self._manifest(name)
             text = manifest.read_bytes()
@@ -159,7 +159,7 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
 
     def remove(self, name: str) -> None:
         if name not in self:
-            raise KeyError(name)
+            raise self._unknown(name)
         with self._lock(shared=False):
             manifest = self._manifest(name)
             manifest.unlink()  # manifest first: a half-removed entry is simply absent
@@ -167,6 +167,10 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
         self._cache.pop(name, None)
 
     # -- internals -----------------------------------------------------------------------------------------
+
+    def _unknown(self, name: str) -> UnknownNameError:
+        templates = ", ".join(self) or "none"
+        return UnknownNameError(f"pool {self.directory}: no template {name!r}; templates: {templates}")
 
     def _manifest(self, name: str) -> Path:
         return self.directory / f"{name}.json"

@@ -44,6 +44,20 @@ def write_atomically(path: str | Path, data: bytes) -> Path:
     return path
 
 
+def is_temporary(path: Path) -> bool:
+    """Whether ``path`` is a temporary of :func:`write_atomically` (``.NAME.XXXX.tmp``): the only file a
+    writer that dies mid-write leaves behind."""
+    return path.name.startswith(".") and path.name.endswith(".tmp")
+
+
+def remove_temporaries(folder: Path) -> None:
+    """Removes the temporaries that dead writers left under ``folder``; for the folder's one writer
+    (:class:`~besman.skills.writer_lock.WriterLock`), whose own temporaries are not there yet."""
+    if folder.is_dir():
+        for path in folder.rglob(".*.tmp"):
+            path.unlink(missing_ok=True)
+
+
 def check_output(
     path: str | Path, *, option: str, suffixes: tuple[str, ...] = (), inputs: tuple[str | Path, ...] = ()
 ) -> Path:

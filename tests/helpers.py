@@ -1,15 +1,21 @@
-"""What several test files share: running the command line and the benchmarks, comparing rotations."""
+"""What several test files share: running the command line and the benchmarks, comparing rotations, killing
+long commands and checking what they leave."""
 
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
+import uuid
 from pathlib import Path
 
 import numpy as np
 
 from besman.cli import main
+from besman.skills.storage import is_temporary
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 LEARNED_TREE = Path(__file__).resolve().parents[1] / "examples" / "trees" / "grasp_then_place_learned.yaml"
@@ -66,3 +72,120 @@ def failed_placements(pool: Path, taus, robot: str = "aila") -> list[tuple]:
         if not summary["success"] or summary["placement_error_m"] is None:
             failed.append((tuple(tau), summary["status"], summary["placement_error_m"], summary["message"]))
     return failed
+
+
+def is_whole(path: Path) -> bool:
+    """Whether a file that besman writes is complete: JSON that parses, NPZ whose arrays all read (zip
+    checksums), PNG that ends with its IEND chunk, a pool's empty lock file."""
+    data = path.read_bytes()
+    try:
+        if path.suffix == ".json":
+            json.loads(data)
+        elif path.suffix == ".npz":
+            with np.load(path, allow_pickle=False) as arrays:
+                for name in arrays.files:
+                    arrays[name]
+        elif path.name == ".lock":
+            return data == b""  # a pool's lock file: it holds nothing
+        elif path.suffix == ".png":
+            return data.startswith(b"\x89PNG\r\n\x1a\n") and data.endswith(b"IEND\xaeB`\x82")
+        else:
+            raise AssertionError(f"{path}: no check for this kind of file")
+    except (ValueError, OSError):
+        return False
+    return True
+
+
+def processes_marked(token: str) -> list[int]:
+    """The live processes (zombies excluded) whose environment holds ``BESMAN_TEST_TOKEN=token``: a command
+    started with it and every process it started, whatever their session or parent now."""
+    found, marker = [], f"BESMAN_TEST_TOKEN={token}".encode()
+    for folder in Path("/proc").glob("[0-9]*"):
+        try:
+            marked = marker in (folder / "environ").read_bytes().split(b"\0")
+            if marked and (folder / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
+                found.append(int(folder.name))
+        except (OSError, IndexError):
+            continue  # ended meanwhile
+    return found
+
+
+def start_marked(command: list[str]) -> tuple[subprocess.Popen, str]:
+    """``command`` started with a token in its environment (:func:`processes_marked`), output discarded."""
+    token = uuid.uuid4().hex
+    process = subprocess.Popen(
+        command,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env={**os.environ, "BESMAN_TEST_TOKEN": token},
+    )
+    return process, token
+
+
+def assert_no_strays(token: str, seconds: float = 5.0) -> None:
+    """No process of a killed command is alive ``seconds`` after the kill."""
+    deadline = time.monotonic() + seconds
+    while processes_marked(token) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert processes_marked(token) == [], "processes outlived the command that started them"
+
+
+def sigint_by_default() -> None:
+    """``preexec_fn`` of a child that a test interrupts with SIGINT: Ctrl-C acts as it does in a terminal
+    even when the tests run in a shell's background job, whose commands inherit SIGINT ignored (and a
+    Python started with SIGINT ignored keeps ignoring it)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def kill_and_resume(
+    command: list[str], out: Path, kills: int, seed: int, jitter: float = 1.0, patience: float = 60.0
+) -> list[str]:
+    """Runs ``command`` (which writes ``out`` and resumes there) and kills it with SIGKILL ``kills`` times,
+    starting it again after each kill; then lets it finish. Every other start is killed a seeded random
+    time (0 to ``jitter`` s) after it writes its first new file (or after ``patience`` s without one), so
+    that the run makes progress and the kills fall all over it; the others within 0.2-3 s of their start
+    (while it starts, reads back its finished stages, or writes). After every kill: every file under
+    ``out`` (but the temporaries of atomic writes) is whole, and no process the command started outlives
+    it by more than 5 s. Returns what each kill followed (the newest file then)."""
+    rng = np.random.default_rng(seed)
+
+    def written() -> list[Path]:
+        return [p for p in out.rglob("*") if p.is_file() and not is_temporary(p)] if out.exists() else []
+
+    interrupted = []
+    for _ in range(kills):
+        before = set(written())
+        process, token = start_marked(command)
+        if len(interrupted) % 2:
+            time.sleep(rng.uniform(0.2, 3.0))
+        else:
+            deadline = time.monotonic() + patience
+            while time.monotonic() < deadline and process.poll() is None and set(written()) <= before:
+                time.sleep(0.05)
+            time.sleep(rng.uniform(0.0, jitter))
+        if process.poll() is not None:
+            raise AssertionError(f"{' '.join(command)} ended (code {process.returncode}) before its kill")
+        os.kill(process.pid, signal.SIGKILL)
+        process.wait()
+        assert_no_strays(token)
+        files = written()
+        torn = [str(p) for p in files if not is_whole(p)]
+        assert torn == [], torn
+        newest = max(files, key=lambda p: p.stat().st_mtime_ns, default=None)
+        interrupted.append("nothing yet" if newest is None else str(newest.relative_to(out)))
+    result = subprocess.run(command, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return interrupted
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    """Every file under ``folder`` (relative path -> bytes)."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def differing_files(folder: Path, other: Path, ignore: tuple[str, ...] = ()) -> list[str]:
+    """The files (relative paths, but ``ignore``) in only one of two folders or that differ in a single byte
+    (nothing: the same)."""
+    first, second = snapshot(folder), snapshot(other)
+    names = (first.keys() | second.keys()) - set(ignore)
+    return sorted(name for name in names if first.get(name) != second.get(name))

@@ -1,7 +1,9 @@
 """Bad input on purpose: every case gets a clear error naming the file, field or value, before any work."""
 
+import argparse
 import json
 import os
+import re
 import textwrap
 import time
 from pathlib import Path
@@ -12,6 +14,7 @@ import pytest
 
 from besman.sim.throwing import BROKEN_REWARD, ThrowingTask
 from besman.skills.errors import InputError
+from besman.skills.writer_lock import OutputBusyError
 from besman.trees import TreeFileError, load_tree
 from besman.trees.runner import node_paths
 from tests.helpers import run_cli
@@ -129,6 +132,65 @@ def test_set_typos_repeats_and_non_finite_values_are_refused(capsys, sets, messa
         argv += ["--set", pair]
     code, out, err = run_cli(capsys, *argv)
     assert code == 2 and message in err and out == ""
+
+
+def _options(parser, path=()):
+    """(command, option) of every option of every command of ``parser``."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, command in action.choices.items():
+                yield from _options(command, (*path, name))
+        elif action.option_strings:
+            yield " ".join(path), action
+
+
+def test_every_numeric_option_has_a_range_that_the_parser_checks():
+    from besman.cli import build_parser
+    from besman.commands import options
+
+    every = list(_options(build_parser()))
+    unchecked = [(command, a.option_strings) for command, a in every if a.type in (int, float)]
+    assert unchecked == []  # a bare int or float takes any number
+    assert sum(a.type is not None and a.type.__module__ == options.__name__ for _, a in every) >= 13
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ("experiment", "throwing", "--out", "{tmp}/out", "--seeds", "0"),
+            "argument --seeds: must be an integer >= 1, got 0",
+        ),
+        (
+            ("view", "--replay", "{tmp}/log", "--port", "70000"),
+            "argument --port: must be an integer from 1 to 65535, got 70000",
+        ),
+        (
+            ("learn", "--demos", "{tmp}", "--out", "{tmp}/pool", "--budget", "-3"),
+            "argument --budget: must be an integer >= 1, got -3",
+        ),
+        (
+            ("learn", "--demos", "{tmp}", "--out", "{tmp}/pool", "--seed", "-1"),
+            "argument --seed: must be an integer from 0 to",
+        ),
+        (("run", "{tmp}/tree.yaml", "--speed", "nan"), "argument --speed: must be a number above 0, got nan"),
+        (("run", "{tmp}/tree.yaml", "--speed", "0"), "argument --speed: must be a number above 0, got 0"),
+        (
+            ("segment", "{tmp}/a.tsv", "--max-particles", "1"),
+            "argument --max-particles: must be an integer >= 2, got 1",
+        ),
+        (
+            ("robots", "render", "aila", "--out", "{tmp}/a.png", "--width", "zero"),
+            "argument --width: must be an integer >= 1, got 'zero'",
+        ),
+    ],
+)
+def test_numeric_options_out_of_range_are_refused_by_name_before_any_work(tmp_path, capsys, argv, message):
+    with pytest.raises(SystemExit) as exit:
+        run_cli(capsys, *(arg.format(tmp=tmp_path) for arg in argv))
+    err = capsys.readouterr().err
+    assert exit.value.code == 2 and message in err, err
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_besman_without_a_command_prints_help_and_fails(capsys):
@@ -346,7 +408,8 @@ def test_two_runs_cannot_write_the_same_log(tmp_path):
     from besman.trees.runner import LogStream
 
     first = LogStream(tmp_path / "run.jsonl", {})
-    with pytest.raises(InputError, match="another run is writing this log"):
+    holder = re.escape(f"--log {tmp_path / 'run.jsonl'}: in use by pid {os.getpid()} (")
+    with pytest.raises(OutputBusyError, match=holder):
         LogStream(tmp_path / "run.jsonl", {})
     first.abandon()
     LogStream(tmp_path / "run.jsonl", {}).abandon()  # free again
@@ -396,3 +459,81 @@ def test_unreadable_files_and_impossible_requests_get_one_clear_line(tmp_path, c
 
     with pytest.raises(InputError, match=r"run_time 10000 s at dt 0.001 s is 1e\+07 steps; at most 20000"):
         DMP(7, dt=0.001).trajectory(run_time=1e4)
+
+
+def _wrong_names():
+    """Every public lookup by name, with a name that does not exist (evaluated lazily, one world shared)."""
+    from besman import robots
+    from besman.learning import segment
+    from besman.sim.blocks import block_bounds
+    from besman.sim.executor import Executor
+    from besman.sim.tasks import task_kind
+    from besman.sim.world import tabletop_world
+    from besman.skills import SkillTemplatePool
+    from besman.trees.gallery import demo
+    from besman.trees.reference import node_reference
+
+    world = tabletop_world()
+    robot, executor = world.robot, Executor(world)
+    pool = SkillTemplatePool(Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place")
+    recording = load_recording()
+    return {
+        "robots.load": lambda: robots.load("nosuch"),
+        "robots.describe": lambda: robots.describe("nosuch"),
+        "Robot.group": lambda: robot.group("nosuch"),
+        "Robot.arm": lambda: robot.arm("nosuch"),
+        "Robot.reset keyframe": lambda: robot.reset(world.data, "nosuch"),
+        "World.surface": lambda: world.surface("nosuch"),
+        "World.object_pose": lambda: world.object_pose("nosuch"),
+        "World.place_on object": lambda: world.place_on("nosuch", "table", 0.5, 0.0),
+        "World.place_on surface": lambda: world.place_on("box", "nosuch", 0.5, 0.0),
+        "Hand.holds": lambda: executor.hand.holds("nosuch"),
+        "Executor.arm_executor": lambda: executor.arm_executor("nosuch"),
+        "SkillTemplatePool[]": lambda: pool["nosuch"],
+        "SkillTemplatePool.remove": lambda: pool.remove("nosuch"),
+        "task_kind": lambda: task_kind("nosuch"),
+        "block_bounds": lambda: block_bounds("nosuch"),
+        "demo": lambda: demo("nosuch"),
+        "node_reference": lambda: node_reference("nosuch"),
+        "Demonstration.channel": lambda: recording.channel("nosuch"),
+        "segment marker": lambda: segment(recording, marker="nosuch"),
+    }
+
+
+def load_recording():
+    from besman.learning import load
+
+    return load(Path(__file__).resolve().parents[1] / "examples" / "data" / "subject1_run1.tsv")
+
+
+def test_every_public_lookup_of_a_wrong_name_raises_a_besman_error_naming_it():
+    from besman.skills.errors import BesmanError
+
+    for what, call in _wrong_names().items():
+        with pytest.raises(BesmanError) as raised:
+            call()
+        assert "nosuch" in str(raised.value), (what, str(raised.value))
+
+
+def test_a_learned_tree_with_a_damaged_pool_entry_is_refused_before_its_first_tick(tmp_path, capsys):
+    import shutil
+
+    pool = tmp_path / "pool"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place", pool)
+    arrays = pool / "carry.npz"
+    data = bytearray(arrays.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    arrays.write_bytes(bytes(data))
+    log = tmp_path / "run.jsonl"
+    tree = TREES / "grasp_then_place_learned.yaml"
+    start = time.perf_counter()
+    code, out, err = run_cli(capsys, "run", str(tree), "--pool", str(pool), "--log", str(log))
+    assert code == 2 and out == "", err
+    assert "template 'carry'" in err and "carry.npz" in err, err
+    assert time.perf_counter() - start < 10.0 and not log.exists()  # no episode ran
+
+
+def test_a_learned_tree_on_another_robot_than_its_pool_was_learned_on_is_refused_at_setup(capsys):
+    code, out, err = run_cli(capsys, "run", str(TREES / "grasp_then_place_learned.yaml"), "--robot", "ur5e")
+    assert code == 2 and out == ""
+    assert "was learned on 'aila', this run is on 'ur5e'" in err, err

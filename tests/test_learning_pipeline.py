@@ -13,6 +13,7 @@ digits."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -22,7 +23,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import run_cli
+from helpers import (
+    assert_no_strays,
+    differing_files,
+    kill_and_resume,
+    processes_marked,
+    run_cli,
+    sigint_by_default,
+    snapshot,
+    start_marked,
+)
 
 from besman.cli import main
 from besman.learning.labelling import DemonstrationSegment
@@ -33,6 +43,7 @@ from besman.sim import Executor, tabletop_world
 from besman.sim.blocks import BlockTask, BlockTaskConfig, Reward, prepare, rollout
 from besman.sim.primitives import point_to_point, shaped
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, SkillTemplatePool
+from besman.skills.writer_lock import WriterLock
 from besman.trees.files import loads_tree
 from besman.trees.manipulation import PlanGrasp, PlanPlace
 from besman.trees.tabletop import tabletop_run
@@ -73,16 +84,6 @@ def _still_hand(count: int = 300) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(0)
     base = {"Hand top": [0.4, 0.1, -0.3], "Hand left": [0.42, 0.13, -0.33], "Hand right": [0.43, 0.07, -0.33]}
     return {name: np.asarray(p) + 1e-4 * rng.normal(size=(count, 3)) for name, p in base.items()}
-
-
-def _snapshot(folder: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
-def _differing_files(folder: Path, other: Path) -> list[str]:
-    """The files that are in only one of two folders or differ in a single byte (nothing: the same)."""
-    first, second = _snapshot(folder), _snapshot(other)
-    return sorted(name for name in first.keys() | second.keys() if first.get(name) != second.get(name))
 
 
 def _learn(demos: Path, out: Path, *options: str) -> Path:
@@ -145,7 +146,7 @@ def test_an_output_that_is_not_a_pool_is_refused_unless_forced(two_recordings, t
     (out / "notes.txt").write_text("keep me")
     with pytest.raises(LearnError, match="not empty and not a pool learned by besman"):
         learn(two_recordings, out, progress=False)
-    assert _snapshot(out) == {"notes.txt": b"keep me"}
+    assert snapshot(out) == {"notes.txt": b"keep me"}
     (tmp_path / "file").write_text("x")
     with pytest.raises(LearnError, match="the output is a file"):
         learn(two_recordings, tmp_path / "file", progress=False)
@@ -158,16 +159,16 @@ def test_a_pool_for_another_robot_or_other_settings_is_refused_and_kept(two_reco
         json.dumps({"schema_version": 1, "kind": "besman-learn", "robot": "pa10"})
     )
     (out / "reach.json").write_text("{}")
-    before = _snapshot(out)
+    before = snapshot(out)
     with pytest.raises(LearnError, match="learned for robot 'pa10', not 'aila'"):
         learn(two_recordings, out, progress=False)
     (out / "work" / "learn.json").write_text(
         json.dumps({"schema_version": 1, "kind": "besman-learn", "robot": "aila"})
     )
-    before = _snapshot(out)
+    before = snapshot(out)
     with pytest.raises(LearnError, match="other recordings or settings"):
         learn(two_recordings, out, progress=False)
-    assert _snapshot(out) == before
+    assert snapshot(out) == before
     with pytest.raises(LearnError, match=r"robot 'pa10': learning refines the blocks in the robot's"):
         learn(two_recordings, out, LearnSettings(robot="pa10"), progress=False)
     with pytest.raises(LearnError, match=r"robot: unknown robot 'r2d2'; available: aila, openarm, pa10, ur"):
@@ -312,12 +313,18 @@ def test_an_interrupted_learn_resumes_to_the_same_pool(small_pool, tmp_path):
     demos = small_pool.parent / "demos"
     out = tmp_path / "pool"
     command = [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(out), *SMALL]
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    errors = (tmp_path / "stderr.txt").open("w")  # not a pipe: nobody reads it while the learn runs
+    process = subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=errors, preexec_fn=sigint_by_default
+    )
     deadline = time.monotonic() + 300
     while not list((out / "work" / "refined").glob("*.json")) and time.monotonic() < deadline:
         time.sleep(0.2)
     process.send_signal(signal.SIGINT)  # mid-refinement: one task done, the others running
-    process.wait(timeout=300)  # a hang guard: on a loaded machine the workers end their rollouts first
+    process.wait(timeout=300)  # a hang guard: the workers end their rollouts first
+    errors.close()
+    err = (tmp_path / "stderr.txt").read_text()
+    assert process.returncode == 130 and err.endswith("besman: interrupted (run it again to resume)\n"), err
     done = list((out / "work" / "refined").glob("*.json"))
     # Stopped before the templates: what the running workers finished is kept (all of it, on a busy machine).
     assert len(done) >= 1 and not (out / "reach.json").exists()
@@ -325,7 +332,65 @@ def test_an_interrupted_learn_resumes_to_the_same_pool(small_pool, tmp_path):
     subprocess.run(command, check=True, capture_output=True)
     for name, content in finished.items():  # finished work was kept, not redone
         assert (out / "work" / "refined" / name).read_bytes() == content
-    assert _differing_files(out, small_pool) == []  # templates, work files and figures, byte for byte
+    assert differing_files(out, small_pool) == []  # templates, work files and figures, byte for byte
+
+
+@pytest.mark.slow
+def test_a_learn_killed_twenty_times_and_resumed_writes_what_one_run_through_writes(small_pool, tmp_path):
+    """Crash consistency: ``kill -9`` (what the out-of-memory killer does) at 20 seeded moments (half of them
+    0-1 s after the restarted learn's first new file), the learn started again each time. At every kill every
+    file on disk is absent or whole and no worker process outlives the learn; the final pool, its work files
+    and figures are the uninterrupted learn's, byte for byte."""
+    demos = small_pool.parent / "demos"
+    out = tmp_path / "pool"
+    command = [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(out), *SMALL]
+    interrupted = kill_and_resume(command, out, kills=20, seed=27)
+    assert differing_files(out, small_pool) == []
+    assert len(set(interrupted)) >= 5, interrupted  # the kills fell at many moments of the run
+    assert not list(tmp_path.glob(".*"))  # no lock or temporary left
+
+
+@pytest.mark.slow
+def test_a_second_learn_into_a_pool_being_learned_is_refused_at_once_naming_the_first(
+    small_pool, tmp_path, capsys
+):
+    demos, out = small_pool.parent / "demos", tmp_path / "pool"
+    argv = ["learn", "--demos", str(demos), "--out", str(out), *SMALL]
+    first, token = start_marked([sys.executable, "-m", "besman", *argv])
+    lock = tmp_path / ".pool.lock"
+    deadline = time.monotonic() + 60
+    while not (lock.exists() and lock.read_text()) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    start = time.monotonic()
+    code, stdout, err = run_cli(capsys, *argv)
+    assert code == 2 and stdout == ""
+    assert f"--out {out}: in use by pid {first.pid} (" in err and " learn --demos " in err, err
+    assert time.monotonic() - start < 5.0 and first.poll() is None
+    os.kill(first.pid, signal.SIGKILL)
+    first.wait()
+    assert_no_strays(token)
+    assert lock.exists()  # the dead learn's lock file: taken over
+    with WriterLock(out, "--out"):
+        assert lock.read_text().startswith(f"pid {os.getpid()} (")
+    assert not lock.exists()
+
+
+@pytest.mark.slow
+def test_no_ray_process_outlives_a_learn_killed_with_sigkill(small_pool, tmp_path):
+    """Ray's head, raylet and workers share the fate of the learn that started them (the process pool's
+    workers are checked at every kill of the crash-consistency test)."""
+    pytest.importorskip("ray")
+    out = tmp_path / "pool"
+    demos = small_pool.parent / "demos"
+    argv = ["learn", "--demos", str(demos), "--out", str(out), *SMALL, "--backend", "ray"]
+    process, token = start_marked([sys.executable, "-m", "besman", *argv])
+    deadline = time.monotonic() + 120
+    while not list((out / "work" / "refined").glob("*.json")) and time.monotonic() < deadline:
+        time.sleep(0.2)  # Ray's workers are rolling blocks out now
+    assert len(processes_marked(token)) >= 4  # the learn, Ray's services and workers
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    assert_no_strays(token)
 
 
 @pytest.mark.slow
@@ -336,7 +401,7 @@ def test_the_same_learn_twice_on_one_machine_writes_the_same_pool_byte_for_byte(
     (Across processors and BLAS builds the digits differ; see the full learn below.)"""
     out = _learn(small_pool.parent / "demos", tmp_path / "pool", *SMALL)
     assert sorted(SkillTemplatePool(out)) == ["carry", "reach", "return"]
-    assert _differing_files(out, small_pool) == []
+    assert differing_files(out, small_pool) == []
 
 
 @pytest.mark.slow

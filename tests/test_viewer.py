@@ -13,6 +13,7 @@ from besman.sim.viewer import MAX_FRAME_GAP, Viewer, headless_chromium
 from besman.trees import grasp_then_place
 from besman.trees.tabletop import tabletop_run
 from besman.trees.watching import Watch
+from tests.helpers import run_cli, sigint_by_default
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 WIDTH, HEIGHT = 1280, 800
@@ -153,6 +154,7 @@ def test_demo_view_serves_on_localhost_until_interrupted(tmp_path):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=sigint_by_default,
     )
     try:
         lines = []
@@ -243,7 +245,6 @@ def test_a_logged_run_replays_scene_and_tree_on_one_timeline(tmp_path):
 
 
 def test_view_throw_refuses_a_missing_template_and_a_bad_target_before_serving(tmp_path, capsys):
-    from tests.helpers import run_cli
 
     pool = str(Path(__file__).parents[1] / "docs/results/throwing/pool")
     code, _, err = run_cli(capsys, "view", "--throw", str(tmp_path), "--port", "0")
@@ -258,7 +259,6 @@ def test_view_throw_refuses_a_missing_template_and_a_bad_target_before_serving(t
 
 
 def test_a_replay_of_a_missing_or_foreign_log_is_one_clear_error(tmp_path, capsys):
-    from tests.helpers import run_cli
 
     code, _, err = run_cli(capsys, "view", "--replay", str(tmp_path / "none.jsonl"))
     assert code == 2 and "none.jsonl: no such file" in err

@@ -28,7 +28,7 @@ from py_trees.blackboard import Blackboard
 from py_trees.common import Access
 
 from besman.sim.executor import Executor
-from besman.skills.errors import InputError
+from besman.skills.errors import InputError, UnknownNameError
 
 
 class RoleBehaviour(py_trees.behaviour.Behaviour):
@@ -109,7 +109,7 @@ class SimulationBehaviour(RoleBehaviour):
         if reference is None or not reference.startswith("/"):
             return reference
         if not self.blackboard.exists(reference):
-            raise KeyError(f"no object name at {reference}")
+            raise UnknownNameError(f"{self.name}: no object name at {reference} on the blackboard")
         return str(self.blackboard.get(reference))
 
     @property
@@ -122,7 +122,7 @@ def executor_of(name: str, setup_arguments: Mapping[str, Any]) -> Executor:
     """The executor given to ``setup``; a clear error names the behaviour if there is none."""
     executor = setup_arguments.get("executor")
     if not isinstance(executor, Executor):
-        raise KeyError(
+        raise InputError(
             f"{name}: setup() needs executor=<besman.sim.executor.Executor> "
             "(BehaviourTree.setup(executor=...))"
         )

@@ -34,8 +34,8 @@ from besman.trees.manipulation import (
     PlanGrasp,
     PlanPlace,
     PlanReturn,
-    check_template,
 )
+from besman.trees.templates import check_template
 
 
 def grasp(

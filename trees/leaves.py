@@ -23,6 +23,7 @@ from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionSta
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
 from besman.trees.base import RoleBehaviour, SimulationBehaviour
+from besman.trees.templates import check_template
 from besman.trees.timing import Deadline
 
 _STATUS = {
@@ -189,6 +190,8 @@ class InstantiateSkillTemplate(RoleBehaviour):
             raise InputError(f"{name}: give either a template or a pool and a template_name")
         if pool is not None and template_name is None:
             raise InputError(f"{name}: a pool needs a template_name")
+        if pool is not None:
+            check_template(name, pool, template_name)
         self.template, self.pool, self.template_name = template, pool, template_name
         self.instantiated: tuple | None = None  # (template, tau) of the last instance (for viewers)
         self.use("tau")

@@ -24,7 +24,7 @@ import numpy as np
 from py_trees.common import Access, Status
 
 from besman.learning.online import Refinement, refine_online, uncertainty
-from besman.sim.blocks import BlockStart, snapshot, steps_after
+from besman.sim.blocks import BLOCK_PARAMETERS, BlockStart, snapshot, steps_after
 from besman.sim.manipulation import (
     DEFAULT_PLAN,
     PickPlacePlan,
@@ -36,6 +36,7 @@ from besman.sim.manipulation import (
 from besman.sim.primitives import shaped
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
+from besman.trees.templates import check_template, check_template_fits
 
 
 class PerceiveObject(SimulationBehaviour):
@@ -103,6 +104,12 @@ class _Plan(SimulationBehaviour):
         self.refinement: Refinement | None = None  # the last online refinement (for feedback and tests)
         for role in self.roles:
             self.use(role)
+
+    def setup(self, **kwargs: Any) -> None:
+        super().setup(**kwargs)
+        if self.pool is not None:
+            robot = self.executor.world.robot.name
+            check_template_fits(self.name, self.pool[self.template], robot, BLOCK_PARAMETERS[self.block])
 
     @property
     def outputs(self) -> tuple[str, ...]:
@@ -342,11 +349,11 @@ class PlanMove(SimulationBehaviour):
             yaw = goal.get("yaw")
             yaw = None if yaw is None else float(yaw)
         except (TypeError, KeyError, ValueError, AttributeError):
-            raise ValueError(
+            raise InputError(
                 f"{self.key('goal')} must hold {{'position': [x, y, z], 'yaw': rad}}, got {goal!r}"
             ) from None
         if position.shape != (3,) or not np.isfinite(position).all():
-            raise ValueError(f"{self.key('goal')}: position must be three finite numbers, got {goal!r}")
+            raise InputError(f"{self.key('goal')}: position must be three finite numbers, got {goal!r}")
         return position, yaw
 
     def update(self) -> Status:
@@ -370,12 +377,3 @@ class PlanMove(SimulationBehaviour):
         self.blackboard.set("motion", motion, overwrite=True)
         self.feedback_message = f"planned {motion.name}"
         return Status.SUCCESS
-
-
-def check_template(name: str, pool: Mapping[str, Any] | None, template: str | None) -> None:
-    """A learned motion's pool and template name, both or neither, the template in the pool (before work)."""
-    if (pool is None) != (template is None):
-        raise InputError(f"{name}: a learned motion needs both a pool and a template name")
-    if pool is not None and template not in pool:
-        where = getattr(pool, "directory", "the pool")
-        raise InputError(f"{name}: {where} has no template {template!r} (has: {', '.join(pool) or 'none'})")

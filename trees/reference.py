@@ -21,6 +21,7 @@ from typing import Any
 
 from py_trees.common import Access
 
+from besman.skills.errors import UnknownNameError
 from besman.trees.files import FORMAT_VERSION
 from besman.trees.nodes import NODE_TYPES, NodeType, Param
 
@@ -82,9 +83,9 @@ _BUILT_IN = {
 
 
 def node_reference(name: str | None = None) -> dict[str, dict]:
-    """Every node type (or ``name`` alone) as plain data; a KeyError names the known types."""
+    """Every node type (or ``name`` alone) as plain data; an unknown name lists the known types."""
     if name is not None and name not in NODE_TYPES:
-        raise KeyError(f"unknown node type {name!r}; known: {', '.join(NODE_TYPES)}")
+        raise UnknownNameError(f"unknown node type {name!r}; known: {', '.join(NODE_TYPES)}")
     reference = {}
     for type_name, spec in NODE_TYPES.items():
         if name is not None and type_name != name:

@@ -21,7 +21,6 @@ runner knows nothing of any particular task: :mod:`besman.trees.tabletop` sets u
 
 from __future__ import annotations
 
-import fcntl
 import json
 import math
 import os
@@ -42,6 +41,7 @@ from besman.sim.executor import Executor
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
 from besman.skills.storage import check_schema_version
+from besman.skills.writer_lock import WriterLock
 
 SCHEMA_VERSION = 1
 _STATUS_NAMES = {status: status.value for status in Status}  # an Enum's .value is a slow descriptor
@@ -265,17 +265,12 @@ class LogStream:
     """A run's JSON-lines log, written as the run goes: the header now, one line per tick, the result at the
     end. Lines go to a temporary file beside ``path`` that becomes ``path`` when the result is written, so
     ``path`` is only ever a whole log; another run writing the same ``path`` at the same time is refused
-    (a lock on ``.NAME.lock`` beside it)."""
+    (:class:`~besman.skills.writer_lock.WriterLock`)."""
 
     def __init__(self, path: str | Path, run_info: dict) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._lock = open(self.path.with_name(f".{self.path.name}.lock"), "a+b")  # noqa: SIM115 (held all run)
-        try:
-            fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            self._lock.close()
-            raise InputError(f"--log {self.path}: another run is writing this log") from None
+        self._lock = WriterLock(self.path, "--log").acquire()
         descriptor, temporary = tempfile.mkstemp(
             dir=self.path.parent, prefix=f".{self.path.name}.", suffix=".tmp"
         )
@@ -307,9 +302,7 @@ class LogStream:
         self._release()
 
     def _release(self) -> None:
-        Path(self._lock.name).unlink(missing_ok=True)  # no lock file left beside the log
-        fcntl.flock(self._lock, fcntl.LOCK_UN)
-        self._lock.close()
+        self._lock.release()  # no lock file left beside the log
 
 
 def read_log(path: str | Path) -> tuple[dict, list[dict], dict]:

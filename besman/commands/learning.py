@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from besman.commands.options import COUNT, SEED
+
 
 def _roles(text: str) -> tuple[tuple[str, str], ...]:
     pairs = []
@@ -48,11 +50,13 @@ def register(commands) -> None:
     learn.add_argument("--demos", required=True, help="a folder of recordings (.tsv, .csv, .npz)")
     learn.add_argument("--out", required=True, help="the pool folder (resumed if a run was interrupted)")
     learn.add_argument("--robot", default="aila", help="the robot (default: aila)")
-    learn.add_argument("--tasks", type=int, default=8, help="training tasks K per building block (default 8)")
-    learn.add_argument("--budget", type=int, default=48, help="rollouts per training task (default 48)")
-    learn.add_argument("--seed", type=int, default=0)
+    learn.add_argument(
+        "--tasks", type=COUNT, default=8, help="training tasks K per building block (default 8)"
+    )
+    learn.add_argument("--budget", type=COUNT, default=48, help="rollouts per training task (default 48)")
+    learn.add_argument("--seed", type=SEED, default=0)
     learn.add_argument("--backend", choices=("threads", "ray"), default="threads")
-    learn.add_argument("--blocks", type=int, default=6, help="building blocks to cluster into (default 6)")
+    learn.add_argument("--blocks", type=COUNT, default=6, help="building blocks to cluster into (default 6)")
     learn.add_argument(
         "--examples", nargs="+", default=[], metavar="FILE", help="annotated recordings: label by them (1-NN)"
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from besman.commands.options import integer
 from besman.skills.errors import InputError
 from besman.skills.storage import check_output
 
@@ -159,7 +160,7 @@ def register(commands) -> None:
     )
     inference.add_argument(
         "--max-particles",
-        type=int,
+        type=integer(2),
         metavar="N",
         help="pruned inference with N candidate change points (default beyond 60 s: 50)",
     )

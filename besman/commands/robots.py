@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from besman.commands.options import COUNT, integer
 from besman.skills.errors import InputError
 
 
@@ -146,8 +147,8 @@ def register(commands) -> None:
     render = robot_commands.add_parser("render", help="offscreen MuJoCo picture of a robot's scene")
     render.add_argument("name")
     render.add_argument("--out", required=True, help="output PNG file")
-    render.add_argument("--width", type=int, default=960)
-    render.add_argument("--height", type=int, default=720)
+    render.add_argument("--width", type=COUNT, default=960)
+    render.add_argument("--height", type=COUNT, default=720)
     render.add_argument("--keyframe", default=None, help="keyframe to show (default: home)")
     render.set_defaults(handler=_robots_render)
     gripper = robot_commands.add_parser(
@@ -157,6 +158,6 @@ def register(commands) -> None:
     gripper.add_argument("name")
     gripper.add_argument("--arm", default=None, help="the arm (default: the robot's first)")
     gripper.add_argument(
-        "--steps", type=int, default=18, help="how many commands, evenly spaced (default 18)"
+        "--steps", type=integer(2), default=18, help="how many commands, evenly spaced (default 18)"
     )
     gripper.set_defaults(handler=_robots_gripper)

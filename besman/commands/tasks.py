@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from besman.commands.options import COUNT
+
 
 def _tasks_list(args: argparse.Namespace) -> int:
     from besman.sim.tasks import TASKS
@@ -69,7 +71,7 @@ def register(commands) -> None:
     throwing.add_argument(
         "--quick", action="store_true", help="a small run (3 x 3 grid, K up to 4; about a minute)"
     )
-    throwing.add_argument("--seeds", type=int, help="independent repetitions (default 3; 1 with --quick)")
+    throwing.add_argument("--seeds", type=COUNT, help="independent repetitions (default 3; 1 with --quick)")
     throwing.add_argument("--backend", choices=("threads", "ray"), default="threads")
     throwing.add_argument("--out", required=True, help="the results directory (an interrupted run resumes)")
     throwing.set_defaults(handler=_experiment_throwing)

@@ -8,6 +8,7 @@ import math
 import sys
 from collections.abc import Sequence
 
+from besman.commands.options import SEED
 from besman.commands.viewing import serve, tabletop, view_options
 from besman.skills.errors import InputError
 from besman.skills.storage import check_output
@@ -277,7 +278,7 @@ def register(commands) -> None:
         metavar="NAME=VALUE[,VALUE]",
         help="object=x,y (where the box stands), place=x,y (where it goes), or any /task value",
     )
-    run.add_argument("--seed", type=int, default=None, help="draws object and place when not set")
+    run.add_argument("--seed", type=SEED, default=None, help="draws object and place when not set")
     run.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     run.add_argument(
@@ -295,7 +296,7 @@ def register(commands) -> None:
     demo.add_argument("--list", action="store_true", help="list the demos and exit")
     demo.add_argument("--robot", default=None, help="the robot (default: the demo's; besman demo --list)")
     demo.add_argument(
-        "--seed", type=int, default=None, help="draws the demo's configuration (default: the README's)"
+        "--seed", type=SEED, default=None, help="draws the demo's configuration (default: the README's)"
     )
     demo.add_argument(
         "--target", default=None, metavar="X,Y", help="where the throw demo aims (m on the floor)"

@@ -8,6 +8,7 @@ import argparse
 import sys
 import time
 
+from besman.commands.options import PORT, positive
 from besman.skills.errors import InputError
 
 
@@ -18,8 +19,8 @@ def view_options(command: argparse.ArgumentParser) -> None:
     view.add_argument(
         "--host", default="127.0.0.1", help="the viewer's address (default 127.0.0.1: this machine)"
     )
-    view.add_argument("--port", type=int, default=8080, help="the viewer's port (busy: the next free one)")
-    view.add_argument("--speed", type=float, default=1.0, help="the run's pace with --view, x real time")
+    view.add_argument("--port", type=PORT, default=8080, help="the viewer's port (busy: the next free one)")
+    view.add_argument("--speed", type=positive, default=1.0, help="the run's pace with --view, x real time")
 
 
 def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple[dict, list]:
@@ -125,5 +126,5 @@ def register(commands) -> None:
     view.add_argument(
         "--host", default="127.0.0.1", help="the viewer's address (default 127.0.0.1: this machine)"
     )
-    view.add_argument("--port", type=int, default=8080, help="the viewer's port (busy: the next free one)")
+    view.add_argument("--port", type=PORT, default=8080, help="the viewer's port (busy: the next free one)")
     view.set_defaults(handler=_view)

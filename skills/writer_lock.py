@@ -1,0 +1,76 @@
+"""One writer per output: a lock that a second command aimed at the same output cannot take.
+
+A long command (``besman learn --out POOL``, ``besman experiment throwing --out DIR``, a run's ``--log``)
+holds an exclusive ``flock`` on ``.NAME.lock`` beside its output for as long as it writes, with its pid and
+command line in the file. A second command refuses at once with one line naming that holder instead of
+interleaving its writes with the first's. The kernel drops an ``flock`` when its process dies, however it
+dies (``kill -9`` included), so a lock left behind by a dead process is simply taken over; the lock file
+stays on disk only in that case, and holds nothing that needs cleaning up.
+
+Taking the lock checks that the file locked is still the one at the path: a holder that finishes removes
+the file, and a command that opened it just before then would otherwise hold a lock on a file nobody else
+can see.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import sys
+from pathlib import Path
+
+from besman.skills.errors import BesmanError
+
+
+class OutputBusyError(BesmanError):
+    """Another live process writes the output; the message names it (pid and command)."""
+
+
+class WriterLock:
+    """The exclusive right to write ``path`` (a file or a folder), named ``option`` in messages."""
+
+    def __init__(self, path: str | Path, option: str) -> None:
+        self.path, self.option = Path(path), option
+        self.lock_path = self.path.absolute().parent / f".{self.path.name}.lock"
+        self._file = None
+
+    def acquire(self) -> WriterLock:
+        """Takes the lock or raises :class:`OutputBusyError` naming the holder."""
+        self.lock_path.parent.mkdir(parents=True, exist_ok=True)
+        while True:
+            file = open(self.lock_path, "a+")  # noqa: SIM115 (held until release)
+            try:
+                fcntl.flock(file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                file.seek(0)
+                holder = file.read().strip() or "a process that is starting"
+                file.close()
+                raise OutputBusyError(f"{self.option} {self.path}: in use by {holder}") from None
+            try:
+                same = os.fstat(file.fileno()).st_ino == os.stat(self.lock_path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            file.close()  # the holder finished and removed it meanwhile: lock the file at the path now
+        file.seek(0)
+        file.truncate()
+        file.write(f"pid {os.getpid()} ({' '.join(sys.argv) or sys.executable})\n")
+        file.flush()
+        self._file = file
+        return self
+
+    def release(self) -> None:
+        """Gives the lock up (removing the file first, so that a waiting command finds the path free)."""
+        if self._file is None:
+            return
+        self.lock_path.unlink(missing_ok=True)
+        fcntl.flock(self._file, fcntl.LOCK_UN)
+        self._file.close()
+        self._file = None
+
+    def __enter__(self) -> WriterLock:
+        return self.acquire()
+
+    def __exit__(self, *exc_info) -> None:
+        self.release()
