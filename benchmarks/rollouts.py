@@ -10,6 +10,10 @@ Targets: ours >= 0.9 x raw steps/s, ours >= 1.8 x naive steps/s.
 
 Pick-and-place (AILA, viewer off): simulated time / wall time of whole scripted episodes (planning
 included), target >= 5.
+
+Block rollouts (what ``besman learn`` refines: the committed pool's learned reach, four tasks, one process):
+``Executor.run`` in chunks of up to ``RUN_CHUNK`` cycles inside which no motion can succeed (the default)
+against cycle by cycle; the rewards must be the same, target >= 1.5x.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ import json
 import os
 import statistics
 import time
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -26,10 +31,14 @@ from mujoco import rollout
 from rich.console import Console
 from rich.table import Table
 
+from besman.sim import executor
+from besman.sim.blocks import BlockTaskConfig
 from besman.sim.pick_place import PickPlaceTask
 from besman.sim.throwing import ThrowingConfig, ThrowingTask
 
 CANDIDATES = 64
+POOL = Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place"
+REACH = POOL / "work" / "shapes" / "reach.json"  # the learned reach's joint-space shape
 
 
 def timed(functions, repeats: int) -> list[float]:
@@ -114,12 +123,43 @@ def pick_and_place() -> dict:
     }
 
 
+def block_rollouts(repeats: int) -> dict:
+    task = BlockTaskConfig("reach", str(REACH)).build()
+    taus = np.array([[0.5, -0.1], [0.6, -0.05], [0.55, -0.12], [0.47, -0.02]])
+    thetas = np.tile(task.shape.theta, (len(taus), 1))
+
+    def chunked():
+        return task.evaluate_locally(thetas, taus).rewards
+
+    def cycle_by_cycle():
+        chunk, executor.RUN_CHUNK = executor.RUN_CHUNK, 1
+        try:
+            return task.evaluate_locally(thetas, taus).rewards
+        finally:
+            executor.RUN_CHUNK = chunk
+
+    fast, slow = timed([chunked, cycle_by_cycle], repeats)
+    return {
+        "rollouts": len(taus),
+        "chunked_s": fast,
+        "cycle_by_cycle_s": slow,
+        "speedup": slow / fast,
+        "same_rewards": bool(np.array_equal(chunked(), cycle_by_cycle())),
+        "target": 1.5,
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
     parser.add_argument("--repeats", type=int, default=7)
     args = parser.parse_args()
-    report = {"benchmark": "rollouts", "throwing": throwing(args.repeats), "pick_and_place": pick_and_place()}
+    report = {
+        "benchmark": "rollouts",
+        "throwing": throwing(args.repeats),
+        "pick_and_place": pick_and_place(),
+        "block_rollouts": block_rollouts(max(1, args.repeats // 3)),
+    }
     if args.json:
         print(json.dumps(report, indent=2))
         return
@@ -146,6 +186,12 @@ def main() -> None:
         f"Pick-and-place: {place['succeeded']}/{place['episodes']} episodes, {place['simulated_s']:.1f} s "
         f"simulated in {place['wall_s']:.1f} s: real-time factor {place['real_time_factor']:.1f}x "
         "(target >= 5x)"
+    )
+    blocks = report["block_rollouts"]
+    console.print(
+        f"Block rollouts ({blocks['rollouts']} reaches): in chunks {blocks['chunked_s']:.2f} s, cycle by "
+        f"cycle {blocks['cycle_by_cycle_s']:.2f} s: {blocks['speedup']:.2f}x (target >= 1.5x), same "
+        f"rewards: {blocks['same_rewards']}"
     )
 
 

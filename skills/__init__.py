@@ -19,29 +19,37 @@
 Imports numpy, scipy and scikit-learn and no other besman package, so every other besman package may use it.
 """
 
-from besman.skills.cartesian_dmp import CartesianDMP, CartesianTrajectory
-from besman.skills.dmp import DMP, Trajectory
-from besman.skills.dmp_core import DMPSettings, Primitive
-from besman.skills.errors import BesmanError, InputError
-from besman.skills.forcing import ForcingBasis
-from besman.skills.pool import PoolError, SkillTemplatePool
-from besman.skills.primitive import MovementPrimitive
-from besman.skills.tasks import TaskBounds
-from besman.skills.template import SkillTemplate
+import importlib
 
-__all__ = [
-    "DMP",
-    "BesmanError",
-    "CartesianDMP",
-    "CartesianTrajectory",
-    "DMPSettings",
-    "ForcingBasis",
-    "InputError",
-    "MovementPrimitive",
-    "PoolError",
-    "Primitive",
-    "SkillTemplate",
-    "SkillTemplatePool",
-    "TaskBounds",
-    "Trajectory",
-]
+# Each name and the module it comes from, imported when first used: the command line imports
+# ``besman.skills.errors`` and must not pay for scipy and scikit-learn to print its help.
+_EXPORTS = {
+    "CartesianDMP": "cartesian_dmp",
+    "CartesianTrajectory": "cartesian_dmp",
+    "DMP": "dmp",
+    "Trajectory": "dmp",
+    "DMPSettings": "dmp_core",
+    "Primitive": "dmp_core",
+    "BesmanError": "errors",
+    "InputError": "errors",
+    "ForcingBasis": "forcing",
+    "PoolError": "pool",
+    "SkillTemplatePool": "pool",
+    "MovementPrimitive": "primitive",
+    "TaskBounds": "tasks",
+    "SkillTemplate": "template",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'besman.skills' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"besman.skills.{_EXPORTS[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

@@ -38,6 +38,9 @@ def test_rollouts_benchmark_reports_ratios_as_json():
     place = report["pick_and_place"]
     assert place["succeeded"] == place["episodes"] == 3
     assert place["real_time_factor"] == pytest.approx(place["simulated_s"] / place["wall_s"])
+    blocks = report["block_rollouts"]
+    assert blocks["same_rewards"] is True and blocks["rollouts"] == 4
+    assert blocks["speedup"] == pytest.approx(blocks["cycle_by_cycle_s"] / blocks["chunked_s"])
     assert place["simulated_s"] > 3 * 5.0, "three whole episodes of several seconds each were simulated"
 
 

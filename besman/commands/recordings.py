@@ -7,13 +7,13 @@ import json
 
 from besman.commands.options import integer
 from besman.skills.errors import InputError
-from besman.skills.storage import check_output
 
 
 def _segment(args: argparse.Namespace) -> int:
     from besman.learning import load
     from besman.learning.contact import ContactMarkers
     from besman.learning.segmentation import segment
+    from besman.skills.storage import check_output
 
     if args.example_labels and not args.examples:
         raise InputError("--example-labels chooses among the segments of --examples; give --examples too")

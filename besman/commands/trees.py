@@ -11,7 +11,6 @@ from collections.abc import Sequence
 from besman.commands.options import SEED
 from besman.commands.viewing import serve, tabletop, view_options
 from besman.skills.errors import InputError
-from besman.skills.storage import check_output
 
 
 def _tree_show(args: argparse.Namespace) -> int:
@@ -26,7 +25,7 @@ def _tree_show(args: argparse.Namespace) -> int:
 def _tree_render(args: argparse.Namespace) -> int:
     import py_trees
 
-    from besman.skills.storage import write_atomically
+    from besman.skills.storage import check_output, write_atomically
     from besman.trees import load_tree
 
     formats = {".svg": "svg", ".png": "png", ".dot": None}  # .dot: the DOT source itself, no Graphviz
@@ -104,7 +103,7 @@ def _tree_nodes(args: argparse.Namespace) -> int:
 
 
 def _tree_schema(args: argparse.Namespace) -> int:
-    from besman.skills.storage import write_atomically
+    from besman.skills.storage import check_output, write_atomically
     from besman.trees.reference import tree_schema
 
     text = json.dumps(tree_schema(), indent=2) + "\n"
@@ -133,6 +132,7 @@ def _tree_check(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from besman.skills.storage import check_output
 
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,))
@@ -147,6 +147,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
+    from besman.skills.storage import check_output
     from besman.trees.gallery import DEMOS, demo
 
     if args.list:
