@@ -2,6 +2,6 @@
 
 import sys
 
-from besman.cli import main
+from besman import main
 
 sys.exit(main())

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from collections.abc import Sequence
 
 from besman._version import __version__
@@ -26,24 +27,35 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    # Offscreen rendering without a screen: EGL unless the user chose otherwise (before `import mujoco`).
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not hasattr(args, "handler"):
-        parser.print_help(sys.stderr)
-        return 2
+    started = time.time()
+    args = None
     try:
+        # Offscreen rendering without a screen: EGL unless the user chose otherwise (before `import mujoco`).
+        os.environ.setdefault("MUJOCO_GL", "egl")
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if not hasattr(args, "handler"):
+            parser.print_help(sys.stderr)
+            return 2
         return args.handler(args)
     except KeyboardInterrupt:
-        resumes = args.command in ("learn", "experiment")  # their outputs keep each finished stage
-        note = "run it again to resume" if resumes else "a --log holds the run up to here"
-        print(f"besman: interrupted ({note})", file=sys.stderr)
+        print(f"besman: interrupted{_kept(args, started)}", file=sys.stderr)
         return 130
     except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)
         return 2
+
+
+def _kept(args: argparse.Namespace | None, started: float) -> str:
+    """What an interrupted command leaves that is of use, for its one line."""
+    command = getattr(args, "command", None)
+    if command in ("learn", "experiment"):  # their outputs keep each finished stage
+        return " (run it again to resume)"
+    log = getattr(args, "log", None)
+    if log and os.path.exists(log) and os.path.getmtime(log) >= started:
+        return f" ({log} holds the run up to here)"
+    return ""
 
 
 if __name__ == "__main__":

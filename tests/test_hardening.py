@@ -4,6 +4,7 @@ import argparse
 import json
 import os
 import re
+import signal
 import textwrap
 import time
 from pathlib import Path
@@ -397,7 +398,7 @@ def test_an_interrupted_run_leaves_a_whole_log_and_one_line(tmp_path, capsys, mo
         capsys, "run", str(TREES / "grasp_then_place.yaml"), "--seed", "1", "--log", str(log)
     )
     assert code == 130 and err.strip().splitlines() == [
-        "besman: interrupted (a --log holds the run up to here)"
+        f"besman: interrupted ({log} holds the run up to here)"
     ]
     header, records, result = read_log(log)
     assert header["kind"] == "besman-run-log" and len(records) == 40 and result["status"] == "INTERRUPTED"
@@ -537,3 +538,46 @@ def test_a_learned_tree_on_another_robot_than_its_pool_was_learned_on_is_refused
     code, out, err = run_cli(capsys, "run", str(TREES / "grasp_then_place_learned.yaml"), "--robot", "ur5e")
     assert code == 2 and out == ""
     assert "was learned on 'aila', this run is on 'ur5e'" in err, err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", ["run", "learn"])
+def test_ctrl_c_at_any_moment_prints_one_line_and_leaves_only_whole_files(
+    tmp_path, command, shared_recordings
+):
+    """Ctrl-C 0.2, 0.5, 1, 2 and 4 s into ``besman run --log`` and ``besman learn``: exit 130, no traceback,
+    the last line says what was interrupted, and whatever was written is whole."""
+    import subprocess
+    import sys
+
+    from besman.trees.runner import read_log
+    from tests.helpers import is_whole, sigint_by_default
+
+    demos = tmp_path / "demos"
+    demos.mkdir()
+    for name in ("subject1_run1.tsv", "subject2_run1.tsv"):
+        (demos / name).symlink_to(shared_recordings / name)
+    script = Path(sys.executable).parent / "besman"  # the installed command, as a user starts it
+    for delay in (0.2, 0.5, 1.0, 2.0, 4.0):
+        out = tmp_path / f"{command}-{delay}"
+        argv = {
+            "run": ["run", str(TREES / "grasp_then_place.yaml"), "--seed", "3", "--log", f"{out}.jsonl"],
+            "learn": ["learn", "--demos", str(demos), "--out", str(out), "--tasks", "2", "--budget", "4"],
+        }[command]
+        process = subprocess.Popen(
+            [str(script), *argv],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=sigint_by_default,
+        )
+        time.sleep(delay)
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+        assert process.returncode == 130, (delay, err)
+        assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("besman: interrupted"), err
+        written = [p for p in tmp_path.rglob("*") if p.is_file() and p.suffix in (".json", ".npz", ".png")]
+        assert all(is_whole(p) for p in written), delay
+        log = Path(f"{out}.jsonl")
+        if log.exists():
+            read_log(log)  # a whole log: header, records, result
