@@ -3,6 +3,8 @@ themselves (side by side in one run), not asserted here."""
 
 import math
 import shutil
+import subprocess
+import sys
 
 import pytest
 from helpers import run_benchmark
@@ -140,3 +142,21 @@ def test_learned_benchmark_compares_the_three_trees_as_json():
         assert 0.0 <= row["success_rate"] <= 1.0
         assert row["mean_episode_s"] > 0 and row["mean_path_length_m"] > 0
         assert row["met"] is None if name == "ik" else row["met"] in (True, False)
+
+
+def test_startup_benchmark_times_every_help_beside_a_bare_python():
+    report = run_benchmark("startup.py", "--runs", "1")
+    commands = report["commands"]
+    assert "besman --help" in commands and "besman learn --help" in commands and len(commands) >= 20
+    for numbers in commands.values():
+        assert numbers["over_python_s"] == pytest.approx(numbers["s"] - report["python_s"])
+    assert report["slowest_s"] == max(numbers["s"] for numbers in commands.values())
+
+
+def test_the_command_line_loads_without_the_heavy_libraries():
+    """What ``besman --help`` imports: none of scipy, scikit-learn, mujoco, ray or numpy (each command
+    imports what it uses when it runs)."""
+    heavy = ("scipy", "sklearn", "mujoco", "ray", "numpy")
+    code = f"import sys, besman.cli; print([m for m in {heavy!r} if m in sys.modules])"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout.strip() == "[]"
