@@ -14,14 +14,14 @@ import time
 from collections.abc import Sequence
 
 from besman._version import __version__
-from besman.commands import learning, pool, recordings, robots, tasks, trees, viewing
+from besman.commands import examples, learning, pool, recordings, robots, tasks, trees, viewing
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="besman", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"besman {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in (robots, trees, viewing, tasks, recordings, learning, pool):
+    for module in (robots, trees, viewing, tasks, recordings, learning, pool, examples):
         module.register(commands)
     return parser
 

@@ -179,7 +179,14 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
     def _lock(self, *, shared: bool):
         if not self.directory.is_dir():
             raise PoolError(f"{self.directory}: no such pool directory")
-        with open(self.directory / ".lock", "a+b") as lock:
+        try:
+            lock = open(self.directory / ".lock", "a+b")  # noqa: SIM115 (closed below)
+        except PermissionError:
+            if not shared:
+                raise PoolError(f"{self.directory}: the pool is read-only here") from None
+            yield  # a pool nobody here may write (e.g. installed with the package) needs no lock to read
+            return
+        with lock:
             fcntl.flock(lock, fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
             try:
                 yield

@@ -29,7 +29,7 @@ from besman.trees.manipulation import PlanMove
 from besman.trees.runner import Runner
 
 ROOT = Path(__file__).resolve().parents[1]
-THROWING_POOL = ROOT / "docs" / "results" / "throwing" / "pool"
+THROWING_POOL = ROOT / "examples" / "pools" / "throwing"
 
 
 class _Seen(py_trees.behaviour.Behaviour):

@@ -164,7 +164,7 @@ def test_every_numeric_option_has_a_range_that_the_parser_checks():
         ),
         (
             ("view", "--replay", "{tmp}/log", "--port", "70000"),
-            "argument --port: must be an integer from 1 to 65535, got 70000",
+            "argument --port: must be an integer from 0 to 65535, got 70000",
         ),
         (
             ("learn", "--demos", "{tmp}", "--out", "{tmp}/pool", "--budget", "-3"),

@@ -246,7 +246,7 @@ def test_a_logged_run_replays_scene_and_tree_on_one_timeline(tmp_path):
 
 def test_view_throw_refuses_a_missing_template_and_a_bad_target_before_serving(tmp_path, capsys):
 
-    pool = str(Path(__file__).parents[1] / "docs/results/throwing/pool")
+    pool = str(Path(__file__).parents[1] / "examples/pools/throwing")
     code, _, err = run_cli(capsys, "view", "--throw", str(tmp_path), "--port", "0")
     assert code == 2 and "no template 'throw' (it has: none)" in err
     code, _, err = run_cli(capsys, "view", "--throw", pool, "--target", "a,b", "--port", "0")
@@ -461,7 +461,7 @@ def test_a_throwing_template_shows_its_spread_and_where_the_ball_lands():
     from besman.skills.errors import InputError
     from besman.skills.pool import SkillTemplatePool
 
-    template = SkillTemplatePool(Path(__file__).parents[1] / "docs/results/throwing/pool")["throw"]
+    template = SkillTemplatePool(Path(__file__).parents[1] / "examples/pools/throwing")["throw"]
     target = (-4.0, -2.0)
     view = ThrowingView(template, target, {"port": 0})
     try:

@@ -21,7 +21,7 @@ same seed gives the same configuration and the same run. ``besman demo --list`` 
 - ``throw``: the PA-10 throws the ball at a target (``--target X,Y``, or drawn from the template's box) with
   the throwing skill template of the paper's experiment.
 
-The tree files live in the source checkout (``examples/trees``), beside the pool they name.
+The tree files ship with the package (:mod:`besman.examples`), beside the pools they name.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ import numpy as np
 import py_trees
 
 import besman.robots as robots
+from besman import examples
 from besman.sim.disturbances import TakeFromHand
 from besman.sim.executor import Executor
 from besman.sim.pick_place import PLACE_TOLERANCE
@@ -47,7 +48,7 @@ from besman.trees.runner import Runner, RunResult
 from besman.trees.tabletop import summary as tabletop_summary
 from besman.trees.tabletop import tabletop_run
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "trees"
+EXAMPLES = examples.path("trees")
 README_CONFIGURATION = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
 Observer = Callable[[Runner, dict], None]
 
