@@ -9,29 +9,39 @@ tick; :mod:`besman.trees.tabletop` runs trees on AILA's tabletop; :mod:`besman.t
 in the browser viewer.
 """
 
-from besman.trees.conditions import AtPose, ObjectAt, ObjectGrasped
+from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
 from besman.trees.files import TreeFileError, describe, dump_tree, load_tree, loads_tree
-from besman.trees.idioms import grasp, grasp_then_place, place
+from besman.trees.guards import KeepApart
+from besman.trees.idioms import grasp, grasp_then_place, place, return_home
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
-from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanPlace
+from besman.trees.loops import ForEach
+from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanPlace, PlanReturn
 from besman.trees.runner import Runner, RunResult, read_log
 from besman.trees.tabletop import run_on_tabletop, tabletop_run
+from besman.trees.throwing import AimThrow, Throw
 from besman.trees.timing import Deadline, SimTimeout, Wait
 
 __all__ = [
+    "AimThrow",
+    "ArmsApart",
     "AtPose",
     "Deadline",
     "ExecutePrimitive",
+    "ForEach",
     "Gripper",
     "InstantiateSkillTemplate",
+    "KeepApart",
     "ObjectAt",
     "ObjectGrasped",
     "PerceiveObject",
     "PlanGrasp",
+    "PlanMove",
     "PlanPlace",
+    "PlanReturn",
     "RunResult",
     "Runner",
     "SimTimeout",
+    "Throw",
     "TreeFileError",
     "Wait",
     "describe",
@@ -42,6 +52,7 @@ __all__ = [
     "loads_tree",
     "place",
     "read_log",
+    "return_home",
     "run_on_tabletop",
     "tabletop_run",
 ]
