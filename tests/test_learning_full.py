@@ -19,7 +19,7 @@ from besman.skills import SkillTemplatePool
 @pytest.fixture(scope="module")
 def full_pool(tmp_path_factory) -> Path:
     """The README's pool learned again here: ``besman learn`` on the 15 shared recordings with the defaults
-    (about 8 minutes on 2 quiet cores)."""
+    (6.4 minutes on 2 cores shared with the rest of the suite, 2026-11-26)."""
     from conftest import SHARED_RECORDINGS
 
     if not SHARED_RECORDINGS.exists():
