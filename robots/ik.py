@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.linalg.lapack import dposv as _cholesky_solve
 
 from besman.robots.kinematics import site_id
@@ -217,8 +218,8 @@ def _joints(robot: Robot, groups: tuple[str, ...]) -> tuple[np.ndarray, ...]:
 def solve_ik(
     robot: Robot,
     group: str | Sequence[str],
-    position,
-    quaternion=None,
+    position: ArrayLike,
+    quaternion: ArrayLike | None = None,
     *,
     site: str | None = None,
     initial_qpos: np.ndarray | None = None,
@@ -227,7 +228,7 @@ def solve_ik(
     max_iterations: int = 200,
     restarts: int = 10,
     seed: int = 0,
-    joint_weights=None,
+    joint_weights: ArrayLike | None = None,
     data: mujoco.MjData | None = None,
 ) -> IKResult:
     """Joint values of ``group`` that bring ``site`` to ``position`` (and ``quaternion``, w-x-y-z, if given).

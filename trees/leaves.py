@@ -81,7 +81,8 @@ class ExecutePrimitive(MotionLeaf):
         name: the leaf's name.
         primitive: the primitive; if None it is read from the blackboard role ``primitive``.
         timeout: simulated seconds after which a still-running motion fails (default: none).
-        namespace, remap: blackboard wiring (see :mod:`besman.trees.base`).
+        namespace: the blackboard namespace of its roles (see :mod:`besman.trees.base`).
+        remap: roles read from or written to other keys (see :mod:`besman.trees.base`).
         arm: the arm that executes it, on a robot driven with several (default: the executor's own).
     """
 
@@ -167,9 +168,11 @@ class InstantiateSkillTemplate(RoleBehaviour):
     Args:
         name: the leaf's name.
         template: the template object, or
-        pool, template_name: a mapping of names to templates and the name to take.
-        namespace, remap: blackboard wiring; by default it reads ``/<namespace>/tau`` and writes
+        pool: a mapping of names to templates (a pool), with
+        template_name: the name to take from it.
+        namespace: the blackboard namespace: by default it reads ``/<namespace>/tau`` and writes
             ``/<namespace>/primitive``.
+        remap: roles read from or written to other keys.
     """
 
     roles: ClassVar = {"tau": Access.READ, "primitive": Access.WRITE}
