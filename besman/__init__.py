@@ -7,7 +7,10 @@ rollouts, execution) and ``besman.trees`` (behaviour trees); ``besman.cli`` is t
 commands in ``besman.commands``, a module per family).
 """
 
+import os
+import signal
 import sys
+import threading
 
 from besman._version import __version__
 
@@ -17,9 +20,29 @@ __all__ = ["__version__", "main"]
 def main() -> int:
     """The ``besman`` command: the command line (:mod:`besman.cli`), imported here so that a Ctrl-C while
     it loads ends with one line too."""
+    sys.unraisablehook = _ctrl_c_again(sys.unraisablehook)
     try:
         from besman.cli import main as command_line
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # its modules are pure Python: no extension's ImportError to unwrap
         print("besman: interrupted", file=sys.stderr)
         return 130
-    return command_line()
+    code = command_line()
+    # The command has ended and said so: a Ctrl-C while the interpreter tears down changes nothing.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return code
+
+
+def _ctrl_c_again(report):
+    """An unraisable-exception hook that does not lose a Ctrl-C: one that arrives while Python runs a
+    callback whose exceptions it only reports (an import lock's weakref callback, a ``__del__``) would be
+    printed as "Exception ignored" and the command would run on; it is raised again, where it counts, by
+    SIGINT sent once more from a thread when the callback is over (sent at once, it would land in this hook,
+    where exceptions are only reported too)."""
+
+    def hook(unraisable) -> None:
+        if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+            threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT)).start()
+            return
+        report(unraisable)
+
+    return hook

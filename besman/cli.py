@@ -41,10 +41,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"besman: interrupted{_kept(args, started)}", file=sys.stderr)
         return 130
+    except ImportError as error:
+        if not interrupted(error):
+            raise
+        print(f"besman: interrupted{_kept(args, started)}", file=sys.stderr)
+        return 130
     except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)
         return 2
+
+
+def interrupted(error: BaseException) -> bool:
+    """Whether ``error`` comes of a Ctrl-C: an extension module whose initialisation a KeyboardInterrupt
+    stopped raises an ImportError caused by it."""
+    cause = error.__cause__ or error.__context__
+    return isinstance(cause, KeyboardInterrupt) or (cause is not None and interrupted(cause))
 
 
 def _kept(args: argparse.Namespace | None, started: float) -> str:
