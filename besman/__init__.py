@@ -21,6 +21,8 @@ def main() -> int:
     """The ``besman`` command: the command line (:mod:`besman.cli`), imported here so that a Ctrl-C while
     it loads ends with one line too."""
     sys.unraisablehook = _ctrl_c_again(sys.unraisablehook)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not where Ctrl-C is ignored
+        signal.signal(signal.SIGINT, _ctrl_c_after_imports)
     try:
         from besman.cli import main as command_line
     except KeyboardInterrupt:  # its modules are pure Python: no extension's ImportError to unwrap
@@ -30,6 +32,18 @@ def main() -> int:
     # The command has ended and said so: a Ctrl-C while the interpreter tears down changes nothing.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     return code
+
+
+def _ctrl_c_after_imports(signum, frame) -> None:
+    """Python's Ctrl-C, but not inside an import: a KeyboardInterrupt raised while an extension module
+    initialises (mujoco's, numpy's) can leave it half made and crash the process later (a segmentation
+    fault, seen once in the suite). Inside an import it is sent again 50 ms later, until it lands after."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT)).start()
+            return
+        frame = frame.f_back
+    raise KeyboardInterrupt
 
 
 def _ctrl_c_again(report):
