@@ -25,19 +25,9 @@ TARGET_S = 0.3
 
 def commands() -> list[list[str]]:
     """``--help`` of the command line and of every command and subcommand."""
-    from besman.cli import build_parser
+    from besman.cli import build_parser, commands
 
-    found = [[]]
-
-    def walk(parser, path):
-        for action in parser._actions:
-            if isinstance(action, argparse._SubParsersAction):
-                for name, command in action.choices.items():
-                    found.append([*path, name])
-                    walk(command, [*path, name])
-
-    walk(build_parser(), [])
-    return [[*path, "--help"] for path in found]
+    return [[*path, "--help"] for path, _ in commands(build_parser())]
 
 
 def wall_time(argv: list[str]) -> float:

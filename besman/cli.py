@@ -11,7 +11,7 @@ import argparse
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from besman._version import __version__
 from besman.commands import examples, learning, pool, recordings, robots, tasks, trees, viewing
@@ -24,6 +24,17 @@ def build_parser() -> argparse.ArgumentParser:
     for module in (robots, trees, viewing, tasks, recordings, learning, pool, examples):
         module.register(commands)
     return parser
+
+
+def commands(
+    parser: argparse.ArgumentParser, path: tuple[str, ...] = ()
+) -> Iterator[tuple[tuple[str, ...], argparse.ArgumentParser]]:
+    """Every command and subcommand of ``parser`` (itself first) with its path of names."""
+    yield path, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, command in action.choices.items():
+                yield from commands(command, (*path, name))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

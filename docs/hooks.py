@@ -39,18 +39,9 @@ def on_page_markdown(markdown: str, **_) -> str:
 
 
 def _command_line() -> str:
-    import argparse
+    from besman.cli import build_parser, commands
 
-    from besman.cli import build_parser
-
-    sections = []
-
-    def walk(parser: argparse.ArgumentParser, path: list[str]) -> None:
-        sections.append(f"## `{' '.join(['besman', *path])}`\n\n```\n{parser.format_help().rstrip()}\n```\n")
-        for action in parser._actions:
-            if isinstance(action, argparse._SubParsersAction):
-                for name, command in action.choices.items():
-                    walk(command, [*path, name])
-
-    walk(build_parser(), [])
-    return "\n".join(sections)
+    return "\n".join(
+        f"## `{' '.join(['besman', *path])}`\n\n```\n{parser.format_help().rstrip()}\n```\n"
+        for path, parser in commands(build_parser())
+    )

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from besman.cli import main
+from besman.sim.reaper import environments
 from besman.skills.storage import is_temporary
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -99,12 +100,14 @@ def is_whole(path: Path) -> bool:
 def processes_marked(token: str) -> list[int]:
     """The live processes (zombies excluded) whose environment holds ``BESMAN_TEST_TOKEN=token``: a command
     started with it and every process it started, whatever their session or parent now."""
-    found, marker = [], f"BESMAN_TEST_TOKEN={token}".encode()
-    for folder in Path("/proc").glob("[0-9]*"):
+    marker = f"BESMAN_TEST_TOKEN={token}".encode()
+    found = []
+    for pid, environment in environments().items():
+        if marker not in environment:
+            continue
         try:
-            marked = marker in (folder / "environ").read_bytes().split(b"\0")
-            if marked and (folder / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
-                found.append(int(folder.name))
+            if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
+                found.append(pid)
         except (OSError, IndexError):
             continue  # ended meanwhile
     return found

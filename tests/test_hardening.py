@@ -1,6 +1,5 @@
 """Bad input on purpose: every case gets a clear error naming the file, field or value, before any work."""
 
-import argparse
 import json
 import os
 import re
@@ -135,14 +134,14 @@ def test_set_typos_repeats_and_non_finite_values_are_refused(capsys, sets, messa
     assert code == 2 and message in err and out == ""
 
 
-def _options(parser, path=()):
+def _options(parser):
     """(command, option) of every option of every command of ``parser``."""
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            for name, command in action.choices.items():
-                yield from _options(command, (*path, name))
-        elif action.option_strings:
-            yield " ".join(path), action
+    from besman.cli import commands
+
+    for path, command in commands(parser):
+        for action in command._actions:
+            if action.option_strings:
+                yield " ".join(path), action
 
 
 def test_every_numeric_option_has_a_range_that_the_parser_checks():
