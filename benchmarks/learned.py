@@ -63,20 +63,20 @@ def trees(pool: Path) -> dict:
 
 
 def episode(build, tau: np.ndarray, robot: str) -> dict:
-    runner, settings = tabletop_run(build(), {"object": tuple(tau[:2]), "place": tuple(tau[2:])}, robot=robot)
+    runner, _ = tabletop_run(build(), {"object": tuple(tau[:2]), "place": tuple(tau[2:])}, robot=robot)
     started = time.perf_counter()
     result = runner.run()
     wall = time.perf_counter() - started
-    outcome = summary(runner, settings, result)
+    outcome = summary(runner, result)
     executor = runner.executor
     measures = hand_measures(executor.arm, executor.log.positions, executor.config.control_period)
-    error = outcome["placement_error_m"]
+    error = outcome.measurements["placement_error_m"]
     return {
-        "success": outcome["success"] and error is not None,  # a tree that places
+        "success": outcome.success and error is not None,  # a tree that places
         "placement_error_m": error,
-        "episode_s": outcome["sim_time_s"],
+        "episode_s": outcome.sim_time_s,
         "wall_s": wall,
-        "message": outcome["message"],
+        "message": outcome.message,
         **measures,
     }
 

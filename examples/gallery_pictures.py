@@ -1,4 +1,4 @@
-"""Pictures of the demo gallery for the README: each demo run with a fixed seed, drawn where it shows most.
+"""The demo gallery's pictures (docs/gallery): each demo run with a fixed seed, drawn where it shows most.
 
     python examples/gallery_pictures.py [--out docs/gallery]
 

@@ -70,8 +70,9 @@ def failed_placements(pool: Path, taus, robot: str = "aila") -> list[tuple]:
     for tau in taus:
         tree = loads_tree(zero_shot, base=LEARNED_TREE.parent, source=LEARNED_TREE.name, pool=pool)
         summary = run_on_tabletop(tree, {"object": tuple(tau[:2]), "place": tuple(tau[2:])}, robot=robot)
-        if not summary["success"] or summary["placement_error_m"] is None:
-            failed.append((tuple(tau), summary["status"], summary["placement_error_m"], summary["message"]))
+        error = summary.measurements["placement_error_m"]
+        if not summary.success or error is None:
+            failed.append((tuple(tau), summary.status, error, summary.message))
     return failed
 
 

@@ -87,8 +87,8 @@ def test_viewer_benchmark_reports_its_cost_beside_the_run():
 
 @pytest.mark.slow
 def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings, tmp_path):
-    # Five of the fifteen recordings, both subjects (the whole set takes ten minutes; its figures are the
-    # README's): every method, fold and score is computed the same way.
+    # Five of the fifteen recordings, both subjects (the whole set takes ten minutes; its figures are in
+    # docs/learning.md): every method, fold and score is computed the same way.
     data = tmp_path / "recordings"
     data.mkdir()
     for name in ("subject1_run1", "subject1_run2", "subject1_run3", "subject2_run1", "subject2_run2"):
@@ -134,7 +134,7 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings,
 
 @pytest.mark.slow
 def test_learned_benchmark_compares_the_three_trees_as_json():
-    # One task (the README's 30 come from the full run): every tree, measure and target is computed as there.
+    # One task (docs/learning.md's 30: the full run): every tree, measure and target is computed as there.
     report = run_benchmark("learned.py", "--count", "1")
     assert report["benchmark"] == "learned" and report["count"] == 1 and report["robot"] == "aila"
     assert set(report["trees"]) == {"ik", "zero-shot", "refined"}

@@ -17,6 +17,7 @@ from besman.skills.errors import InputError
 from besman.skills.writer_lock import OutputBusyError
 from besman.trees import TreeFileError, load_tree
 from besman.trees.runner import node_paths
+from besman.trees.tabletop import MEASUREMENTS
 from tests.helpers import run_cli
 
 TREES = Path(__file__).resolve().parents[1] / "examples" / "trees"
@@ -200,7 +201,9 @@ def test_besman_without_a_command_prints_help_and_fails(capsys):
 
 def test_demo_json_is_json_alone_and_the_prose_suggests_a_next_step(capsys):
     code, out, _ = run_cli(capsys, "demo", "--json")
-    assert code == 0 and json.loads(out)["status"] == "SUCCESS"
+    summary = json.loads(out)
+    assert code == 0 and summary["success"] and summary["demo"] == "grasp-then-place"
+    assert summary["kind"] == "besman-run-summary" and set(summary["measurements"]) == set(MEASUREMENTS)
     code, out, _ = run_cli(capsys, "demo")
     assert code == 0 and "next:" in out and "besman run examples/trees/grasp_then_place.yaml" in out
 
@@ -210,7 +213,7 @@ def test_a_tree_that_places_nothing_reports_where_the_box_is_and_place_alone_fai
     assert code == 0 and out.startswith("SUCCESS: box at (") and "placement error" not in out
     code, out, _ = run_cli(capsys, "run", str(TREES / "place.yaml"), "--seed", "1", "--json")
     summary = json.loads(out)
-    assert code == 1 and summary["placement_error_m"] is not None
+    assert code == 1 and summary["measurements"]["placement_error_m"] is not None
     assert summary["message"].startswith("not holding box")
 
 

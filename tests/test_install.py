@@ -1,18 +1,30 @@
-"""The package as a user installs it: the wheel and the source distribution build and pass `twine check`, and
-the wheel, installed into a fresh virtual environment, runs the README's commands from an empty folder - the
-demos, the shipped trees and the shipped pool included (package data, no source checkout)."""
+"""The package as a user installs it, and the README as a newcomer follows it.
+
+The wheel and the source distribution build and pass ``twine check``; the wheel, installed into a fresh
+virtual environment, runs from an empty folder (package data, no source checkout), and there every command of
+the README runs in the order it is written: its set-up commands are the ones CI runs, its tour's commands
+succeed (the ones that serve the browser viewer answer it and end on Ctrl-C), its files are written where it
+says and its Python runs.
+"""
 
 import json
 import os
+import re
+import shlex
 import shutil
+import signal
 import site
 import subprocess
 import sys
+import urllib.request
 from pathlib import Path
 
 import pytest
+from helpers import sigint_by_default
 
 REPO = Path(__file__).resolve().parents[1]
+README = REPO / "README.md"
+APT = "apt-get update && apt-get install -y --no-install-recommends"
 
 
 def run(*argv, **options) -> subprocess.CompletedProcess:
@@ -22,65 +34,167 @@ def run(*argv, **options) -> subprocess.CompletedProcess:
     return result
 
 
-@pytest.mark.slow
-def test_the_wheel_installed_into_a_fresh_venv_runs_the_readme_from_an_empty_folder(tmp_path):
-    # Built from a copy of the sources (building writes into the source folder).
-    source = tmp_path / "source"
-    shutil.copytree(
-        REPO,
-        source,
-        ignore=shutil.ignore_patterns(
-            ".git", "build", "dist", "*.egg-info", "__pycache__", ".*cache", ".lock"
-        ),
-    )
-    dist = tmp_path / "dist"
-    run(sys.executable, "-m", "build", "--sdist", "--wheel", "--outdir", dist, source)  # as pip builds it
-    (wheel,) = dist.glob("besman-*.whl")
-    (sdist,) = dist.glob("besman-*.tar.gz")
-    assert "PASSED" in run(sys.executable, "-m", "twine", "check", "--strict", wheel, sdist).stdout
-    venv = tmp_path / "venv"
-    # The venv sees the already-installed dependencies (no downloads) but gets its own copy of besman.
-    # --system-site-packages shows the base interpreter's packages; inside a virtual environment the
-    # dependencies live in that environment instead, so its site-packages are added by a .pth file (plain
-    # paths: the editable besman's own .pth hooks there are not run).
-    run(sys.executable, "-m", "venv", "--system-site-packages", venv)
-    python = venv / "bin" / "python"
-    if sys.prefix != sys.base_prefix:
-        purelib = run(
-            python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"
-        ).stdout.strip()
-        Path(purelib, "outer_environment.pth").write_text("\n".join(site.getsitepackages()) + "\n")
-    run(python, "-m", "pip", "install", "--quiet", "--no-deps", "--ignore-installed", wheel, cwd=tmp_path)
-    empty = tmp_path / "empty"
-    empty.mkdir()
-    environment = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
-    besman = venv / "bin" / "besman"
+class Installed:
+    """The wheel installed into a fresh virtual environment (its `besman` first on the PATH)."""
 
-    def command(*argv) -> str:
-        return run(besman, *argv, cwd=empty, env=environment).stdout
-
-    located = run(python, "-c", "import besman.robots as r; print(r.__file__)", cwd=empty, env=environment)
-    assert Path(located.stdout.strip()).is_relative_to(venv), "besman came from the wheel, not the checkout"
-    assert command("--version").startswith("besman ")
-    assert '"J_Shoulder1_r"' in command("robots", "show", "aila", "--json")
-    assert "grasp-then-place" in command("demo", "--list")
-    result = json.loads(command("demo", "--json"))
-    assert result["status"] == "SUCCESS" and result["success"] is True
-    assert Path(command("examples", "--copy", ".").strip()) == Path("examples")
-    trees = sorted(str(p.relative_to(empty)) for p in (empty / "examples" / "trees").glob("*.yaml"))
-    assert len(trees) == 7
-    command("tree", "check", *trees)
-    learned = json.loads(
-        command(
-            "run",
-            "examples/trees/grasp_then_place_learned.yaml",
-            "--pool",
-            "examples/pools/pick_place",
-            "--set",
-            "object=0.5,-0.05",
-            "--set",
-            "place=0.58,-0.44",
-            "--json",
+    def __init__(self, root: Path) -> None:
+        # Built from a copy of the sources (building writes into the source folder).
+        source = root / "source"
+        shutil.copytree(
+            REPO,
+            source,
+            ignore=shutil.ignore_patterns(
+                ".git", "build", "dist", "site", "*.egg-info", "__pycache__", ".*cache", ".lock"
+            ),
         )
+        dist = root / "dist"
+        run(sys.executable, "-m", "build", "--sdist", "--wheel", "--outdir", dist, source)  # as pip builds
+        (self.wheel,) = dist.glob("besman-*.whl")
+        (self.sdist,) = dist.glob("besman-*.tar.gz")
+        self.venv = root / "venv"
+        # The venv sees the already-installed dependencies (no downloads) but gets its own copy of besman.
+        # --system-site-packages shows the base interpreter's packages; inside a virtual environment the
+        # dependencies live in that environment instead, so its site-packages are added by a .pth file
+        # (plain paths: the editable besman's own .pth hooks there are not run).
+        run(sys.executable, "-m", "venv", "--system-site-packages", self.venv)
+        self.python = self.venv / "bin" / "python"
+        if sys.prefix != sys.base_prefix:
+            purelib = run(
+                self.python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"
+            ).stdout.strip()
+            Path(purelib, "outer_environment.pth").write_text("\n".join(site.getsitepackages()) + "\n")
+        pip = (self.python, "-m", "pip", "install", "-q", "--no-deps", "--ignore-installed")
+        run(*pip, self.wheel, cwd=root)
+        self.environment = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
+        self.environment["PATH"] = f"{self.venv / 'bin'}{os.pathsep}{os.environ['PATH']}"
+
+    def besman(self, *argv, cwd: Path) -> str:
+        return run(self.venv / "bin" / "besman", *argv, cwd=cwd, env=self.environment).stdout
+
+    def serve(self, argv: list[str], cwd: Path) -> None:
+        """A command that ends by serving the viewer: the page answers, and Ctrl-C ends it cleanly."""
+        process = subprocess.Popen(
+            [self.venv / "bin" / "besman", *argv[1:]],
+            cwd=cwd,
+            env=self.environment,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=sigint_by_default,
+        )
+        try:
+            lines = []
+            for line in process.stderr:  # the viewer's address, then the run; the last line: it serves
+                lines.append(line)
+                if "until Ctrl-C" in line:
+                    break
+            else:
+                process.wait(timeout=60)
+                raise AssertionError(f"{shlex.join(argv)} ended without serving:\n{''.join(lines)[-3000:]}")
+            url = re.search(r"(http://\S+)", line).group(1)
+            with urllib.request.urlopen(url, timeout=30) as page:
+                assert page.status == 200 and b"<html" in page.read(2000).lower(), url
+            process.send_signal(signal.SIGINT)
+            _, err = process.communicate(timeout=60)
+            assert process.returncode == 0, (shlex.join(argv), err[-3000:])
+            assert "Traceback" not in err, err[-3000:]
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> Installed:
+    return Installed(tmp_path_factory.mktemp("install"))
+
+
+@pytest.mark.slow
+def test_the_wheel_and_sdist_pass_twine_and_the_installed_wheel_runs_from_an_empty_folder(
+    installed, tmp_path
+):
+    result = run(sys.executable, "-m", "twine", "check", "--strict", installed.wheel, installed.sdist)
+    assert "PASSED" in result.stdout
+    located = run(
+        installed.python,
+        "-c",
+        "import besman.robots as r; print(r.__file__)",
+        cwd=tmp_path,
+        env=installed.environment,
     )
-    assert learned["status"] == "SUCCESS", learned
+    assert Path(located.stdout.strip()).is_relative_to(installed.venv), "besman came from the checkout"
+    assert installed.besman("--version", cwd=tmp_path).startswith("besman ")
+    assert '"J_Shoulder1_r"' in installed.besman("robots", "show", "aila", "--json", cwd=tmp_path)
+    result = json.loads(installed.besman("demo", "--json", cwd=tmp_path))
+    assert result["status"] == "SUCCESS" and result["success"] is True
+    assert Path(installed.besman("examples", "--copy", ".", cwd=tmp_path).strip()) == Path("examples")
+    trees = sorted(str(p.relative_to(tmp_path)) for p in (tmp_path / "examples" / "trees").glob("*.yaml"))
+    assert len(trees) == 7
+    installed.besman("tree", "check", *trees, cwd=tmp_path)
+
+
+def readme_blocks() -> list[tuple[str, str, str | None, str]]:
+    """The README's fenced blocks in order: (section, language, the file it is to be saved as, text)."""
+    text = README.read_text()
+    blocks = []
+    pattern = r"(?:<!-- file: (\S+) -->\n)?```(\w*)\n(.*?)```"
+    for match in re.finditer(pattern, text, flags=re.DOTALL):
+        sections = re.findall(r"^## (.+)$", text[: match.start()], flags=re.MULTILINE)
+        blocks.append((sections[-1] if sections else "", match.group(2), match.group(1), match.group(3)))
+    return blocks
+
+
+def commands(block: str) -> list[list[str]]:
+    """A bash block's commands, one per line, without their comments."""
+    return [shlex.split(line, comments=True) for line in block.splitlines() if line.strip()]
+
+
+def test_the_readme_set_up_commands_are_the_main_job_and_what_ci_runs():
+    """The two set-up commands: the main job (system libraries, the package, the default demo) and the
+    test command, which is what ``.ci/run`` runs and installs everything the main job does."""
+    setup = [text.strip() for section, language, _, text in readme_blocks() if section == "Set up"]
+    assert len(setup) == 2
+    main_job, test_command = setup
+    assert main_job.startswith(APT) and main_job.endswith("&& pip install -e . && besman demo")
+    assert run(REPO / ".ci" / "run", "--print").stdout.strip() == test_command
+    packages = main_job.removeprefix(APT).split("&&")[0].split()
+    assert set(packages) <= set(test_command.removeprefix(APT).split("&&")[0].split())
+    assert 'pip install -e ".[dev,distributed]"' in test_command and '-m ""' in test_command
+
+
+@pytest.mark.slow
+def test_every_command_of_the_readme_runs_in_order_from_an_empty_folder(installed, tmp_path):
+    blocks = readme_blocks()
+    kinds = {(section, language) for section, language, _, _ in blocks}
+    assert kinds == {
+        ("Set up", "bash"),
+        ("A five-minute tour", "bash"),
+        ("A five-minute tour", "yaml"),
+        ("A five-minute tour", "python"),
+        ("How it fits together", ""),  # the sketch
+    }, "a block the test does not know how to run"
+    folder = tmp_path
+    installed.besman("demo", cwd=folder)  # the main job's own command
+    ran = []
+    for section, language, file, text in blocks:
+        if section != "A five-minute tour":
+            continue
+        if file is not None:
+            (folder / file).write_text(text)
+            continue
+        if language == "python":
+            run(installed.python, "-c", text, cwd=folder, env=installed.environment)
+            ran.append("python")
+            continue
+        for argv in commands(text):
+            assert argv[0] == "besman", argv
+            if "--view" in argv or argv[1] == "view":
+                installed.serve(argv, folder)
+            else:
+                installed.besman(*argv[1:], cwd=folder)
+            ran.append(shlex.join(argv))
+    assert len(ran) >= 15, ran
+    # What the tour says it leaves behind.
+    assert (folder / "segments.png").read_bytes()[:4] == b"\x89PNG"
+    assert {"reach.json", "carry.json", "return.json"} <= {p.name for p in (folder / "mypool").iterdir()}
+    assert (folder / "throwing" / "results.json").is_file() and (folder / "run.jsonl").is_file()

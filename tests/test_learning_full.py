@@ -18,8 +18,8 @@ from besman.skills import SkillTemplatePool
 
 @pytest.fixture(scope="module")
 def full_pool(tmp_path_factory) -> Path:
-    """The README's pool learned again here: ``besman learn`` on the 15 shared recordings with the defaults
-    (6.4 minutes on 2 cores shared with the rest of the suite, 2026-11-26)."""
+    """The shipped pool (``examples/pools/pick_place``) learned again here: ``besman learn`` on the 15 shared
+    recordings with the defaults (6.4 minutes on 2 cores shared with the rest of the suite, 2026-11-26)."""
     from conftest import SHARED_RECORDINGS
 
     if not SHARED_RECORDINGS.exists():

@@ -433,7 +433,7 @@ def test_the_learned_tree_places_the_box_with_the_committed_pool_and_with_pool(s
             *extra,
         )
         summary = json.loads(out)
-        assert code == 0 and summary["status"] == "SUCCESS" and summary["placement_error_m"] < 0.02
+        assert code == 0 and summary["success"] and summary["measurements"]["placement_error_m"] < 0.02
     code, _, err = run_cli(capsys, "run", str(LEARNED_TREE), "--pool", str(small_pool / "missing"))
     assert code == 2 and "no such pool directory" in err
 

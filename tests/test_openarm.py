@@ -113,7 +113,7 @@ def test_grasp_then_place_runs_on_the_openarm_within_its_limits(openarm):
         run = prepare_demo("grasp-then-place", seed, {"robot": "openarm"})
         result = run.runner.run()
         summary = run.judge(result)
-        assert summary["success"], (seed, summary["message"])
+        assert summary.success, (seed, summary.message)
         executor = run.runner.executor
         assert not limit_violations(executor.log, executor), seed
 
@@ -125,8 +125,9 @@ def test_the_handover_runs_on_the_openarm_ten_times_without_the_arms_touching(op
     for seed in range(10):
         run = prepare_demo("handover", seed, {"robot": "openarm"})
         summary = run.judge(run.runner.run())
-        assert summary["success"], (seed, summary["status"], summary["message"])
-        assert summary["ticks_arms_touching"] == 0 and summary["arms_closest_m"] >= 0.03
+        assert summary.success, (seed, summary.status, summary.message)
+        touching, closest = (summary.measurements[key] for key in ("ticks_arms_touching", "arms_closest_m"))
+        assert touching == 0 and closest >= 0.03
         executor = run.runner.executor
         for member in (executor, executor.arm_executor("left")):
             violations = limit_violations(member.log, member)

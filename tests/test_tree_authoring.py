@@ -121,4 +121,4 @@ def test_the_guides_tutorial_tree_runs():
     block = re.search(r"<!-- tutorial-tree -->\n```yaml\n(.*?)```", GUIDE.read_text(), re.S).group(1)
     tree = loads_tree(block, base=ROOT / "examples" / "trees", source="grasp_hold_place.yaml")
     summary = run_on_tabletop(tree, {"object": (0.55, -0.08), "place": (0.54, -0.41)})
-    assert summary["status"] == "SUCCESS" and summary["placement_error_m"] < 0.02
+    assert summary.status == "SUCCESS" and summary.measurements["placement_error_m"] < 0.02

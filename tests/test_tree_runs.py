@@ -3,6 +3,7 @@
 import json
 import os
 import shutil
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,8 @@ import pytest
 from besman.cli import main
 from besman.sim.pick_place import PICK_PLACE_BOUNDS
 from besman.trees.runner import read_log, statuses
-from besman.trees.tabletop import pick_place_settings, replay, run_on_tabletop
+from besman.trees.summary import RunSummary
+from besman.trees.tabletop import MEASUREMENTS, pick_place_settings, replay, run_on_tabletop
 
 TREE = Path(__file__).resolve().parents[1] / "examples" / "trees" / "grasp_then_place.yaml"
 
@@ -33,25 +35,19 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
     )
     summary = json.loads(capsys.readouterr().out)
     assert code == 0
-    assert set(summary) == {
-        "success",
-        "status",
-        "placement_error_m",
-        "box_position",
-        "sim_time_s",
-        "wall_time_s",
-        "ticks",
-        "failed_node",
-        "message",
-    }
+    # The one documented shape of every run's and demo's --json (besman.trees.summary).
+    assert list(summary) == ["schema_version", "kind", *(item.name for item in fields(RunSummary))]
+    assert summary["schema_version"] == 1 and summary["kind"] == "besman-run-summary"
+    assert set(summary["measurements"]) == set(MEASUREMENTS) and summary["demo"] is None
+    assert summary["tree"] == str(TREE.resolve()) and summary["robot"] == "aila"
     assert summary["status"] == "SUCCESS" and summary["failed_node"] is None
     header, records, result = read_log(log)
     assert header["run"]["settings"] == {"object": [0.55, -0.10], "place": [0.50, -0.40]}
     final_box = np.array(records[-1]["robot"]["objects"]["box"])
-    assert summary["placement_error_m"] == pytest.approx(
+    assert summary["measurements"]["placement_error_m"] == pytest.approx(
         np.linalg.norm(final_box[:2] - [0.50, -0.40]), abs=1e-4
     )
-    assert summary["placement_error_m"] < 0.02 and summary["success"]
+    assert summary["measurements"]["placement_error_m"] < 0.02 and summary["success"]
     assert result["ticks"] == summary["ticks"] == len(records)
     assert records[-1]["time"] == pytest.approx(summary["sim_time_s"], abs=0.02)
     writes = [change["key"] for record in records for change in record["blackboard"]]
@@ -115,8 +111,6 @@ def test_seeded_settings_are_reproducible_and_in_bounds():
 def test_grasp_then_place_succeeds_in_40_random_configurations():
     """>= 95 % of 40 seeded configurations drawn from the task's bounds, with real contact grasps."""
     summaries = [run_on_tabletop(TREE, seed=seed) for seed in range(40)]
-    successes = [s for s in summaries if s["status"] == "SUCCESS"]
-    assert len(successes) >= 38, [
-        (i, s["message"]) for i, s in enumerate(summaries) if s["status"] != "SUCCESS"
-    ]
-    assert all(s["placement_error_m"] < 0.02 for s in successes)
+    successes = [s for s in summaries if s.status == "SUCCESS"]
+    assert len(successes) >= 38, [(i, s.message) for i, s in enumerate(summaries) if s.status != "SUCCESS"]
+    assert all(s.measurements["placement_error_m"] < 0.02 for s in successes)

@@ -122,7 +122,7 @@ def test_grasp_then_place_on_the_ur5e_ten_of_ten_within_its_limits():
     every commanded motion of every episode within the UR5e's velocity, acceleration and jerk limits."""
     for seed in range(1000, 1010):
         summary, violations = _run("grasp-then-place", seed)
-        assert summary["success"] and summary["placement_error_m"] <= 0.02, (seed, summary["message"])
+        assert summary.success and summary.measurements["placement_error_m"] <= 0.02, (seed, summary.message)
         assert violations == [], (seed, violations)
 
 
@@ -133,8 +133,9 @@ def test_sort_on_the_ur5e_ten_of_ten_within_its_limits():
     places = sort_places("ur5e")
     for seed in range(1000, 1010):
         summary, violations = _run("sort", seed)
-        assert summary["success"], (seed, summary["status"], summary["message"])
-        assert summary["slipped"] in places and max(summary["placement_errors_m"].values()) <= 0.02
+        assert summary.success, (seed, summary.status, summary.message)
+        measured = summary.measurements
+        assert measured["slipped"] in places and max(measured["placement_errors_m"].values()) <= 0.02
         assert violations == [], (seed, violations)
 
 
@@ -188,7 +189,7 @@ def test_the_viewer_shows_whichever_robot_runs():
     args = argparse.Namespace(view=True, host="127.0.0.1", port=0, speed=1000.0, seed=3, log=None)
     summary, viewers = _watched_demo(args, demo("sort"), {"robot": "ur5e"})
     try:
-        assert summary["success"] and summary["robot"] == "ur5e"
+        assert summary.success and summary.robot == "ur5e"
         model = viewers[0].scene.mj_model
         assert model.nmesh > 0 and model.body("wrist_3_link").id > 0
         with urllib.request.urlopen(viewers[0].url, timeout=10) as page:

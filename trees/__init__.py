@@ -5,8 +5,9 @@ given to ``BehaviourTree.setup(executor=...)``, using the blackboard by declared
 (:mod:`besman.trees.base`); subtree idioms (:func:`grasp`, :func:`place`, :func:`grasp_then_place`,
 :mod:`besman.trees.idioms`) compose them; :func:`load_tree` reads YAML tree files (node types in
 :mod:`besman.trees.nodes`); :class:`Runner` ticks a tree in lockstep with the simulation and logs every
-tick; :mod:`besman.trees.tabletop` runs trees on AILA's tabletop; :mod:`besman.trees.watching` shows a run
-in the browser viewer.
+tick; :mod:`besman.trees.tabletop` runs trees on a robot's tabletop and :mod:`besman.trees.gallery` the
+demos, each run ending in a :class:`RunSummary`; :mod:`besman.trees.watching` shows a run in the browser
+viewer.
 """
 
 from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
@@ -17,6 +18,7 @@ from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTempl
 from besman.trees.loops import ForEach
 from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanPlace, PlanReturn
 from besman.trees.runner import Runner, RunResult, read_log
+from besman.trees.summary import RunSummary
 from besman.trees.tabletop import run_on_tabletop, tabletop_run
 from besman.trees.throwing import AimThrow, Throw
 from besman.trees.timing import Deadline, SimTimeout, Wait
@@ -39,6 +41,7 @@ __all__ = [
     "PlanPlace",
     "PlanReturn",
     "RunResult",
+    "RunSummary",
     "Runner",
     "SimTimeout",
     "Throw",

@@ -8,7 +8,7 @@ same seed gives the same configuration and the same run. ``besman demo --list`` 
 ``besman demo NAME [--seed N] [--view]`` runs one.
 
 - ``grasp-then-place``: the robot (AILA by default; ``--robot NAME``) takes the box from the table to the
-  shelf (without a seed: the README's configuration on AILA, the middle of the layout's areas elsewhere).
+  shelf (without a seed: :data:`DEFAULT_CONFIGURATION` on AILA, the middle of the layout's areas elsewhere).
 - ``sort``: three boxes, each to its own place on the shelf, in a loop over the blackboard's list of objects
   (:class:`~besman.trees.loops.ForEach`); one box is taken out of the hand during its carry and set down
   elsewhere on the table, and the tree grasps it again. Any robot with a tabletop layout.
@@ -27,7 +27,7 @@ The tree files ship with the package (:mod:`besman.examples`), beside the pools 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -45,30 +45,33 @@ from besman.skills.errors import InputError
 from besman.trees.blackboard import set_task_values
 from besman.trees.files import load_tree
 from besman.trees.runner import Runner, RunResult
+from besman.trees.summary import Measured, RunSummary
+from besman.trees.tabletop import MEASUREMENTS as TABLETOP_MEASUREMENTS
 from besman.trees.tabletop import summary as tabletop_summary
 from besman.trees.tabletop import tabletop_run
 
 EXAMPLES = examples.path("trees")
-README_CONFIGURATION = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
+DEFAULT_CONFIGURATION = {"object": (0.55, -0.08), "place": (0.54, -0.41)}  # the docs' examples use it too
+THROW_TOLERANCE = 0.5  # m: a throw demo is done when the ball lands this close to its target
 Observer = Callable[[Runner, dict], None]
 
 
 @dataclass(frozen=True)
 class DemoRun:
     """A prepared run: the runner (not started), the configuration it was given, and the judge of its
-    result (a summary with ``success``)."""
+    result (its :class:`~besman.trees.summary.RunSummary`)."""
 
     runner: Runner
     settings: dict
-    judge: Callable[[RunResult], dict]
-    robot: str = "aila"
+    judge: Callable[[RunResult], RunSummary]
 
 
 @dataclass(frozen=True)
 class Demo:
     """A demo of the gallery: its name, one line on what it shows, its tree file, how a run is prepared
     (``prepare(seed, options, observe)``; ``options["robot"]`` names the robot), the robots it runs on by
-    default and which robots can run it (``fits(robot description)``)."""
+    default, which robots can run it (``fits(robot description)``) and what its summary measures (name:
+    meaning, the keys of :attr:`RunSummary.measurements <besman.trees.summary.RunSummary.measurements>`)."""
 
     name: str
     title: str
@@ -76,6 +79,7 @@ class Demo:
     prepare: Callable[[int | None, Mapping, Observer | None], DemoRun]
     robot: str
     fits: Callable[[robots.RobotDescription], bool]
+    measurements: Mapping[str, str]
 
     @property
     def path(self) -> Path:
@@ -141,12 +145,12 @@ def _middle(area) -> tuple[float, float]:
 
 
 def grasp_then_place_values(robot: str, seed: int | None) -> dict[str, tuple[float, float]]:
-    """The object and place of grasp-then-place without a seed: the README's on AILA, the middle of the
+    """The object and place of grasp-then-place without a seed: the default ones on AILA, the middle of the
     layout's object and place areas on other robots (with a seed: none, they are drawn)."""
     if seed is not None:
         return {}
     if robot == "aila":
-        return dict(README_CONFIGURATION)
+        return dict(DEFAULT_CONFIGURATION)
     layout = robots.describe(robot).tabletop
     return {"object": _middle(layout.objects), "place": _middle(layout.places)}
 
@@ -157,11 +161,8 @@ def _grasp_then_place(seed: int | None, options: Mapping, observe: Observer | No
     runner, settings = tabletop_run(EXAMPLES / "grasp_then_place.yaml", values, seed=seed, robot=robot)
     runner.observe = observe
 
-    def judge(result: RunResult) -> dict:
-        outcome = tabletop_summary(runner, settings, result)
-        return {**outcome, "settings": settings}
-
-    return DemoRun(runner, settings, judge)
+    runner.run_info["demo"] = "grasp-then-place"
+    return DemoRun(runner, settings, lambda result: tabletop_summary(runner, result))
 
 
 # -- sort --------------------------------------------------------------------------------------------------
@@ -239,18 +240,21 @@ def _sort(seed: int | None, options: Mapping, observe: Observer | None) -> DemoR
         robot=robot,
     )
 
-    def judge(result: RunResult) -> dict:
+    def judge(result: RunResult) -> RunSummary:
         errors = {
             name: float(np.linalg.norm(world.object_pose(name).position[:2] - places[name])) for name in names
         }
-        return {
-            "success": result.status == "SUCCESS" and max(errors.values()) <= PLACE_TOLERANCE and slip.done,
-            "status": result.status,
-            "placement_errors_m": {name: round(error, 4) for name, error in errors.items()},
-            "slipped": slip.object if slip.done else None,
-            **_timing(result),
-            "settings": settings,
-        }
+        shown = ", ".join(f"{name} {error * 100:.1f} cm" for name, error in errors.items())
+        slipped = slip.object if slip.done else None
+        measured = Measured(
+            max(errors.values()) <= PLACE_TOLERANCE and slip.done,
+            f"placement errors {shown}; {slipped or 'no box'} slipped and was grasped again",
+            {
+                "placement_errors_m": {name: round(error, 4) for name, error in errors.items()},
+                "slipped": slipped,
+            },
+        )
+        return RunSummary.of(runner, result, measured)
 
     return DemoRun(runner, settings, judge)
 
@@ -308,17 +312,19 @@ def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> D
         "handover", root, right, seed, settings, 120.0, observers(contacts, observe), robot=options["robot"]
     )
 
-    def judge(result: RunResult) -> dict:
+    def judge(result: RunResult) -> RunSummary:
         error = float(np.linalg.norm(world.object_pose("bar").position[:2] - place))
-        return {
-            "success": result.status == "SUCCESS" and error <= PLACE_TOLERANCE and contacts.touching == 0,
-            "status": result.status,
-            "placement_error_m": round(error, 4),
-            "ticks_arms_touching": contacts.touching,
-            "arms_closest_m": round(contacts.closest, 4),
-            **_timing(result),
-            "settings": settings,
-        }
+        measured = Measured(
+            error <= PLACE_TOLERANCE and contacts.touching == 0,
+            f"placement error {error * 100:.1f} cm; the arms came within {contacts.closest * 100:.1f} cm "
+            f"and touched at {contacts.touching} ticks",
+            {
+                "placement_error_m": round(error, 4),
+                "ticks_arms_touching": contacts.touching,
+                "arms_closest_m": round(contacts.closest, 4),
+            },
+        )
+        return RunSummary.of(runner, result, measured)
 
     return DemoRun(runner, settings, judge)
 
@@ -348,33 +354,35 @@ def _throw(seed: int | None, options: Mapping, observe: Observer | None) -> Demo
     set_task_values({"target": target})
     settings = {"target": target.tolist()}
     runner = _runner(
-        "throw", root, executor, seed, settings, 10.0, observe, options={"target": target.tolist()}
+        "throw",
+        root,
+        executor,
+        seed,
+        settings,
+        10.0,
+        observe,
+        robot=options["robot"],
+        options={"target": target.tolist()},
     )
 
-    def judge(result: RunResult) -> dict:
+    def judge(result: RunResult) -> RunSummary:
         flight = executor.throw
-        landing = None if flight is None or flight.landing is None else flight.landing
-        miss = None if landing is None else float(np.linalg.norm(landing - target))
-        return {
-            "success": result.status == "SUCCESS" and miss is not None and miss <= 0.5,
-            "status": result.status,
-            "target": target.tolist(),
-            "landing": None if landing is None else np.round(landing, 3).tolist(),
-            "miss_m": None if miss is None else round(miss, 3),
-            **_timing(result),
-        }
+        landing = None if flight is None or flight.landing is None else np.round(flight.landing, 3)
+        miss = None if landing is None else float(np.linalg.norm(flight.landing - target))
+        measured = Measured(
+            miss is not None and miss <= THROW_TOLERANCE,
+            "no landing"
+            if landing is None
+            else f"landed at {landing.tolist()}, {miss:.3f} m from {target.tolist()}",
+            {
+                "target": target.tolist(),
+                "landing": None if landing is None else landing.tolist(),
+                "miss_m": None if miss is None else round(miss, 3),
+            },
+        )
+        return RunSummary.of(runner, result, measured)
 
     return DemoRun(runner, settings, judge)
-
-
-def _timing(result: RunResult) -> dict:
-    return {
-        "sim_time_s": result.sim_time_s,
-        "wall_time_s": result.wall_time_s,
-        "ticks": result.ticks,
-        "failed_node": result.failed_node,
-        "message": result.message,
-    }
 
 
 DEMOS: dict[str, Demo] = {
@@ -387,6 +395,7 @@ DEMOS: dict[str, Demo] = {
             _grasp_then_place,
             "aila",
             one_hand_tabletop,
+            TABLETOP_MEASUREMENTS,
         ),
         Demo(
             "sort",
@@ -396,6 +405,10 @@ DEMOS: dict[str, Demo] = {
             _sort,
             "aila",
             one_hand_tabletop,
+            {
+                "placement_errors_m": "each box's distance from its own place on the shelf, by box",
+                "slipped": "the box taken out of the hand during its carry (None if the slip never came)",
+            },
         ),
         Demo(
             "handover",
@@ -405,6 +418,11 @@ DEMOS: dict[str, Demo] = {
             _handover,
             "aila",
             _two_hand_tabletop,
+            {
+                "placement_error_m": "the bar's distance from its place on the shelf, in the plane",
+                "ticks_arms_touching": "ticks at which the two arms touched in the simulation (done: none)",
+                "arms_closest_m": "the closest the arms came (searched up to 0.5 m)",
+            },
         ),
         Demo(
             "throw",
@@ -413,6 +431,11 @@ DEMOS: dict[str, Demo] = {
             _throw,
             "pa10",
             lambda robot: robot.name == "pa10",
+            {
+                "target": "where the ball should land, x, y on the floor",
+                "landing": "where it first touched the floor (None if it never did)",
+                "miss_m": "the distance between the two (done: within 0.5 m)",
+            },
         ),
     )
 }
@@ -424,9 +447,7 @@ def demo(name: str) -> Demo:
         raise InputError(f"no demo {name!r}; demos: {', '.join(DEMOS)}")
     found = DEMOS[name]
     if not found.path.is_file():
-        raise InputError(
-            f"demo {name}: its tree {found.path} is missing (demos run from the source checkout)"
-        )
+        raise InputError(f"demo {name}: its tree {found.path} is missing from the installed package")
     return found
 
 
@@ -437,12 +458,10 @@ def run_demo(
     *,
     log: str | Path | None = None,
     observe: Observer | None = None,
-) -> dict:
-    """Runs a demo and returns its judged summary (``success``, measurements, the configuration);
-    ``options["robot"]`` chooses the robot (default: the demo's)."""
+) -> RunSummary:
+    """Runs a demo and returns its summary; ``options["robot"]`` chooses the robot (default: the demo's)."""
     prepared = prepare_demo(name, seed, options, observe)
-    result = prepared.runner.run(log=log)
-    return {"demo": name, "seed": seed, "robot": prepared.robot, **prepared.judge(result)}
+    return prepared.judge(prepared.runner.run(log=log))
 
 
 def prepare_demo(
@@ -452,5 +471,5 @@ def prepare_demo(
     the demo does not fit is refused by name, before any work."""
     found = demo(name)
     options = dict(options or {})
-    robot = options["robot"] = found.check_robot(options.get("robot"))
-    return replace(found.prepare(seed, options, observe), robot=robot)
+    options["robot"] = found.check_robot(options.get("robot"))
+    return found.prepare(seed, options, observe)

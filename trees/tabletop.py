@@ -23,6 +23,7 @@ from besman.skills.errors import InputError
 from besman.trees.blackboard import set_task_values, task_keys_read
 from besman.trees.files import describe, load_tree, loads_tree
 from besman.trees.runner import Runner, RunResult, read_log, statuses
+from besman.trees.summary import Measured, RunSummary
 
 TreeSource = str | Path | py_trees.behaviour.Behaviour
 
@@ -87,31 +88,39 @@ def run_on_tabletop(
     log: str | Path | None = None,
     max_sim_time: float = 120.0,
     robot: str = "aila",
-) -> dict:
+) -> RunSummary:
     """Runs a tree on ``robot``'s tabletop (:func:`tabletop_run`) and returns its :func:`summary`."""
-    runner, settings = tabletop_run(tree, values, seed=seed, max_sim_time=max_sim_time, robot=robot)
-    return summary(runner, settings, runner.run(log=log))
+    runner, _ = tabletop_run(tree, values, seed=seed, max_sim_time=max_sim_time, robot=robot)
+    return summary(runner, runner.run(log=log))
 
 
-def summary(runner: Runner, settings: dict[str, list[float]], result: RunResult) -> dict:
-    """A tabletop run's outcome: success (the tree succeeded and, for a tree that reads the place target,
-    the box stands within :data:`~besman.sim.pick_place.PLACE_TOLERANCE` of it), status, placement error
-    measured in the simulation (None for a tree that does not read the place target), the box's position,
-    simulated and wall time, ticks, failed node and message."""
+MEASUREMENTS = {
+    "placement_error_m": "the box's distance from its place on the shelf, in the plane (None for a tree "
+    "that does not read the place target)",
+    "box_position": "where the box ended, x, y, z in the world",
+}
+
+
+def summary(runner: Runner, result: RunResult) -> RunSummary:
+    """A tabletop run's summary: done when the box stands within
+    :data:`~besman.sim.pick_place.PLACE_TOLERANCE` of its place, for a tree that reads the place target (one
+    that does not places nothing and is judged by its status alone); :data:`MEASUREMENTS`."""
     box = runner.executor.world.object_pose("box").position
-    places = "place" in task_keys_read(runner.root)  # a tree that never reads the target places nothing
-    error = float(np.linalg.norm(box[:2] - np.asarray(settings["place"]))) if places else None
-    return {
-        "success": result.status == "SUCCESS" and (error is None or error <= PLACE_TOLERANCE),
-        "status": result.status,
-        "placement_error_m": error,
-        "box_position": [round(float(v), 4) for v in box],
-        "sim_time_s": result.sim_time_s,
-        "wall_time_s": result.wall_time_s,
-        "ticks": result.ticks,
-        "failed_node": result.failed_node,
-        "message": result.message,
-    }
+    places = "place" in task_keys_read(runner.root)
+    error = None
+    if places:
+        error = float(np.linalg.norm(box[:2] - np.asarray(runner.run_info["settings"]["place"])))
+    outcome = (
+        f"placement error {error * 100:.1f} cm"
+        if error is not None
+        else "box at ({:.3f}, {:.3f}, {:.3f}) m".format(*box)
+    )
+    measured = Measured(
+        error is None or error <= PLACE_TOLERANCE,
+        outcome,
+        {"placement_error_m": error, "box_position": [round(float(v), 4) for v in box]},
+    )
+    return RunSummary.of(runner, result, measured)
 
 
 def replay(path: str | Path) -> list[dict[str, str]]:

@@ -7,6 +7,8 @@ import json
 import math
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
 
 from besman.commands.options import SEED
 from besman.commands.viewing import serve, tabletop, view_options
@@ -62,22 +64,9 @@ def _parse_sets(pairs: Sequence[str]) -> dict[str, tuple[float, ...]]:
     return values
 
 
-def _print_summary(summary: dict, as_json: bool) -> None:
-    if as_json:
-        print(json.dumps(summary, indent=2))
-        return
-    error = summary["placement_error_m"]
-    outcome = (
-        f"placement error {error * 100:.1f} cm"
-        if error is not None
-        else "box at ({:.3f}, {:.3f}, {:.3f}) m".format(*summary["box_position"])
-    )
-    print(
-        f"{summary['status']}: {outcome}, "
-        f"{summary['sim_time_s']:.1f} s simulated in {summary['wall_time_s']:.1f} s, {summary['ticks']} ticks"
-    )
-    if summary["failed_node"]:
-        print(f"failed at {summary['failed_node']}: {summary['message']}")
+def _print_summary(summary, as_json: bool) -> None:
+    """A run's :class:`~besman.trees.summary.RunSummary`, as JSON or as its lines for people."""
+    print(json.dumps(summary.to_json(), indent=2) if as_json else summary.text())
 
 
 def _tree_nodes(args: argparse.Namespace) -> int:
@@ -142,8 +131,10 @@ def _run(args: argparse.Namespace) -> int:
 
         tree = load_tree(args.file, pool=args.pool)
     summary, viewers = tabletop(args, tree, _parse_sets(args.set), args.log)
+    if args.pool is not None:
+        summary = replace(summary, tree=f"{Path(args.file).resolve()} (--pool {Path(args.pool).resolve()})")
     _print_summary(summary, args.json)
-    return serve(viewers, 0 if summary["status"] == "SUCCESS" else 1)
+    return serve(viewers, 0 if summary.success else 1)
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -163,22 +154,30 @@ def _demo(args: argparse.Namespace) -> int:
         if chosen.name != "throw":
             raise InputError(f"--target is for the throw demo, not {chosen.name}")
         options["target"] = _parse_sets([f"target={args.target}"])["target"]
-    if chosen.name == "grasp-then-place":
-        return _grasp_then_place_demo(args)
     if not args.json:
-        print(f"{chosen.name}: {chosen.title} ({chosen.path})")
+        print(f"{chosen.name} ({chosen.path.name}) on {args.robot}")
     summary, viewers = _watched_demo(args, chosen, options)
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print(_demo_outcome(summary))
-    return serve(viewers, 0 if summary["success"] else 1)
+    _print_summary(summary, args.json)
+    if not args.json and chosen.name == "grasp-then-place":
+        print(
+            "next: watch it in the browser (besman demo --view), see the other demos (besman demo --list), "
+            "or run the same tree as a file elsewhere on the table with a log:\n"
+            "  besman examples --copy .\n"
+            "  besman run examples/trees/grasp_then_place.yaml --set object=0.5,-0.05 --set place=0.58,-0.44 "
+            "--log run.jsonl"
+        )
+    return serve(viewers, 0 if summary.success else 1)
 
 
-def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple[dict, list]:
-    """Runs a gallery demo; with --view, watched in the browser at --speed (the viewer stays open)."""
-    from besman.trees.gallery import run_demo
+def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple:
+    """Runs a gallery demo; with --view, watched in the browser at --speed (the viewer stays open).
+    Grasp-then-place is watched in a session (Run, Pause, Step, breakpoints, the box and place dragged)."""
+    from besman.trees.gallery import grasp_then_place_values, run_demo
 
+    if chosen.name == "grasp-then-place":
+        values = grasp_then_place_values(args.robot, args.seed)
+        summary, viewers = tabletop(args, str(chosen.path), values, args.log)
+        return replace(summary, demo=chosen.name), viewers
     if not args.view:
         return run_demo(chosen.name, args.seed, options, log=args.log), []
     from besman.sim.viewer import Viewer
@@ -194,53 +193,7 @@ def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple[dict
     except BaseException:
         viewer.close()
         raise
-    return {"demo": chosen.name, "seed": args.seed, "robot": prepared.robot, **prepared.judge(result)}, [
-        viewer
-    ]
-
-
-def _demo_outcome(summary: dict) -> str:
-    head = "SUCCESS" if summary["success"] else f"FAILURE ({summary['status']})"
-    if "miss_m" in summary:
-        landing = summary["landing"]
-        detail = (
-            "no landing"
-            if landing is None
-            else f"landed at {landing}, {summary['miss_m']} m from {summary['target']}"
-        )
-    elif "ticks_arms_touching" in summary:
-        detail = (
-            f"placement error {summary['placement_error_m'] * 100:.1f} cm; the arms came within "
-            f"{summary['arms_closest_m'] * 100:.1f} cm and touched at {summary['ticks_arms_touching']} ticks"
-        )
-    else:
-        errors = ", ".join(
-            f"{name} {error * 100:.1f} cm" for name, error in summary["placement_errors_m"].items()
-        )
-        detail = f"placement errors {errors}; {summary['slipped'] or 'no box'} slipped and was grasped again"
-    text = f"{head}: {detail}; {summary['sim_time_s']:.1f} s simulated in {summary['wall_time_s']:.1f} s"
-    if summary["failed_node"]:
-        text += f"\nfailed at {summary['failed_node']}: {summary['message']}"
-    return text
-
-
-def _grasp_then_place_demo(args: argparse.Namespace) -> int:
-    from besman.trees.gallery import demo, grasp_then_place_values
-
-    if not args.json:  # --json prints the summary alone
-        print(f"{args.robot} grasps the box on the table and places it on the shelf (grasp-then-place tree)")
-    values = grasp_then_place_values(args.robot, args.seed)
-    summary, viewers = tabletop(args, str(demo("grasp-then-place").path), values, args.log)
-    summary = {"demo": "grasp-then-place", "seed": args.seed, "robot": args.robot, **summary}
-    _print_summary(summary, args.json)
-    if not args.json:
-        print(
-            "next: watch it in the browser (besman demo --view), see the other demos (besman demo --list), "
-            "or run the same tree as a file elsewhere on the table with a log:\n"
-            "  besman run examples/trees/grasp_then_place.yaml --set object=0.5,-0.05 --set place=0.58,-0.44 "
-            "--log run.jsonl"
-        )
-    return serve(viewers, 0 if summary["status"] == "SUCCESS" else 1)
+    return prepared.judge(result), [viewer]
 
 
 def register(commands) -> None:
@@ -297,7 +250,7 @@ def register(commands) -> None:
     demo.add_argument("--list", action="store_true", help="list the demos and exit")
     demo.add_argument("--robot", default=None, help="the robot (default: the demo's; besman demo --list)")
     demo.add_argument(
-        "--seed", type=SEED, default=None, help="draws the demo's configuration (default: the README's)"
+        "--seed", type=SEED, default=None, help="draws the demo's configuration (default: a fixed one)"
     )
     demo.add_argument(
         "--target", default=None, metavar="X,Y", help="where the throw demo aims (m on the floor)"

@@ -23,7 +23,7 @@ def view_options(command: argparse.ArgumentParser) -> None:
     view.add_argument("--speed", type=positive, default=1.0, help="the run's pace with --view, x real time")
 
 
-def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple[dict, list]:
+def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple:
     """Runs ``tree`` on the tabletop of ``args.robot``; with --view inside a browser session that stays open
     after the run (returned in the list, for :func:`serve`)."""
     from besman.trees.tabletop import run_on_tabletop, summary
@@ -51,7 +51,7 @@ def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple[dict, l
     except BaseException:
         session.close()
         raise
-    return summary(session.runner, session.values, result), [session]
+    return summary(session.runner, result), [session]
 
 
 def serve(viewers: list, code: int) -> int:
