@@ -193,3 +193,41 @@ def differing_files(folder: Path, other: Path, ignore: tuple[str, ...] = ()) -> 
     first, second = snapshot(folder), snapshot(other)
     names = (first.keys() | second.keys()) - set(ignore)
     return sorted(name for name in names if first.get(name) != second.get(name))
+
+
+def serve_then_interrupt(argv: list, timeout: float = 120.0, **popen) -> tuple[str, str]:
+    """Runs a command that ends by serving the browser viewer (``the viewer stays at URL until Ctrl-C``):
+    the page at that address answers, then Ctrl-C ends the command with exit 0 and no traceback. Returns its
+    stdout and stderr."""
+    import re
+    import subprocess
+    import urllib.request
+
+    process = subprocess.Popen(
+        [str(a) for a in argv],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=sigint_by_default,
+        **popen,
+    )
+    try:
+        lines = []
+        for line in process.stderr:  # the viewer's address, the run, then the line saying it serves
+            lines.append(line)
+            if "until Ctrl-C" in line:
+                break
+        else:
+            process.wait(timeout=timeout)
+            raise AssertionError(f"{argv} ended without serving:\n{''.join(lines)[-3000:]}")
+        url = re.search(r"http://127\.0\.0\.1:\d+", line).group(0)  # bound to this machine
+        with urllib.request.urlopen(url, timeout=30) as page:
+            assert page.status == 200 and b"<html" in page.read().lower(), url
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=timeout)  # a hang guard, generous for a loaded machine
+        assert process.returncode == 0 and "Traceback" not in err, (argv, err[-3000:])
+        return out, "".join(lines) + err
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()

@@ -12,15 +12,13 @@ import os
 import re
 import shlex
 import shutil
-import signal
 import site
 import subprocess
 import sys
-import urllib.request
 from pathlib import Path
 
 import pytest
-from helpers import sigint_by_default
+from helpers import serve_then_interrupt
 
 REPO = Path(__file__).resolve().parents[1]
 README = REPO / "README.md"
@@ -70,38 +68,6 @@ class Installed:
 
     def besman(self, *argv, cwd: Path) -> str:
         return run(self.venv / "bin" / "besman", *argv, cwd=cwd, env=self.environment).stdout
-
-    def serve(self, argv: list[str], cwd: Path) -> None:
-        """A command that ends by serving the viewer: the page answers, and Ctrl-C ends it cleanly."""
-        process = subprocess.Popen(
-            [self.venv / "bin" / "besman", *argv[1:]],
-            cwd=cwd,
-            env=self.environment,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            preexec_fn=sigint_by_default,
-        )
-        try:
-            lines = []
-            for line in process.stderr:  # the viewer's address, then the run; the last line: it serves
-                lines.append(line)
-                if "until Ctrl-C" in line:
-                    break
-            else:
-                process.wait(timeout=60)
-                raise AssertionError(f"{shlex.join(argv)} ended without serving:\n{''.join(lines)[-3000:]}")
-            url = re.search(r"(http://\S+)", line).group(1)
-            with urllib.request.urlopen(url, timeout=30) as page:
-                assert page.status == 200 and b"<html" in page.read(2000).lower(), url
-            process.send_signal(signal.SIGINT)
-            _, err = process.communicate(timeout=60)
-            assert process.returncode == 0, (shlex.join(argv), err[-3000:])
-            assert "Traceback" not in err, err[-3000:]
-        finally:
-            if process.poll() is None:
-                process.kill()
-                process.wait()
 
 
 @pytest.fixture(scope="module")
@@ -189,7 +155,9 @@ def test_every_command_of_the_readme_runs_in_order_from_an_empty_folder(installe
         for argv in commands(text):
             assert argv[0] == "besman", argv
             if "--view" in argv or argv[1] == "view":
-                installed.serve(argv, folder)
+                serve_then_interrupt(
+                    [installed.venv / "bin" / "besman", *argv[1:]], cwd=folder, env=installed.environment
+                )
             else:
                 installed.besman(*argv[1:], cwd=folder)
             ran.append(shlex.join(argv))

@@ -13,7 +13,7 @@ from besman.sim.viewer import MAX_FRAME_GAP, Viewer, headless_chromium
 from besman.trees import grasp_then_place
 from besman.trees.tabletop import tabletop_run
 from besman.trees.watching import Watch
-from tests.helpers import run_cli, sigint_by_default
+from tests.helpers import run_cli, serve_then_interrupt
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 WIDTH, HEIGHT = 1280, 800
@@ -139,35 +139,14 @@ def test_a_running_grasp_then_place_is_seen_in_the_browser_with_its_tree():
 def test_demo_view_serves_on_localhost_until_interrupted(tmp_path):
     """``besman demo --view`` prints the URL, runs (writing its log), keeps serving the page, and ends cleanly
     on Ctrl-C."""
-    import re
-    import signal
-    import subprocess
     import sys
-    import time
-    import urllib.request
 
     from besman.trees.runner import read_log
 
     log = tmp_path / "run.jsonl"
-    process = subprocess.Popen(
-        [sys.executable, "-m", "besman", "demo", "--view", "--port", "0", "--speed", "20", "--log", str(log)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=sigint_by_default,
-    )
-    try:
-        lines = []
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not any("viewer stays" in line for line in lines):
-            lines.append(process.stderr.readline())
-        url = re.search(r"http://127\.0\.0\.1:\d+", "".join(lines)).group(0)  # bound to this machine
-        with urllib.request.urlopen(url, timeout=10) as response:
-            assert response.status == 200 and b"<html" in response.read().lower()
-    finally:
-        process.send_signal(signal.SIGINT)
-        out, _ = process.communicate(timeout=120)  # a hang guard, generous for a loaded machine
-    assert process.returncode == 0 and out.splitlines()[1].startswith("SUCCESS: placement error")
+    argv = [sys.executable, "-m", "besman", "demo", "--view", "--port", "0", "--speed", "20", "--log", log]
+    out, _ = serve_then_interrupt(argv)
+    assert out.splitlines()[1].startswith("SUCCESS: placement error")
     assert read_log(log)[2]["status"] == "SUCCESS"
 
 
