@@ -39,8 +39,10 @@ Schema version 2 adds what lets any arm run the same skills (version 1 files sta
   one; its z axis points out of the hand, its y axis along the fingers' closing) and its gripper: the joint
   group of the fingers, the actuator, the map between opening (m per finger, half the aperture between the
   pads) and actuator command as matching ``opening`` / ``command`` lists, the opening ``open`` that grasps
-  and releases, the pad geoms of each side (``pads``: two lists) and the opening's velocity, acceleration and
-  jerk limits. With several arms working at once, groups that two arms share (a waist) are held.
+  and releases, the pad geoms of each side (``pads``: two lists), the opening's velocity, acceleration and
+  jerk limits, and optionally ``still_speed``, the fingers' joint speed (their joint's units per s, default
+  1e-3) under which closed fingers count as settled (fingers that squeeze an object may creep). With
+  several arms working at once, groups that two arms share (a waist) are held.
 - ``"tabletop"``: where the tabletop world puts its table and shelf boards and where objects and targets may
   be, in the robot's frame (the world's, with the robot standing at the origin); a two-arm robot adds
   ``"handover"``: the area on the table where the left hand picks the bar, the area on the shelf where the
@@ -121,7 +123,8 @@ class ToolCentrePoint:
 class GripperSpec:
     """A gripper: its fingers' joint group, the actuator, opening (m per finger) <-> command as two matching
     monotone lists, the opening that grasps and releases, the pad geoms of each side and the opening's
-    motion limits (m/s, m/s^2, m/s^3 per finger)."""
+    motion limits (m/s, m/s^2, m/s^3 per finger), and the finger joints' speed under which they have
+    settled."""
 
     group: str
     actuator: str
@@ -130,6 +133,7 @@ class GripperSpec:
     open: float
     pads: tuple[tuple[str, ...], tuple[str, ...]]
     limits: JointLimitSpec
+    still_speed: float = 1e-3
 
 
 @dataclass(frozen=True)
@@ -327,6 +331,9 @@ def _gripper(value: Any, where: str) -> GripperSpec:
     sides = tuple(_string_list(side, f"{where}.pads[{i}]") for i, side in enumerate(pads))
     if not all(sides):
         raise DescriptionError(f"{where}.pads: each side needs at least one geom")
+    still_speed = value.get("still_speed", GripperSpec.still_speed)
+    if isinstance(still_speed, bool) or not isinstance(still_speed, int | float) or not still_speed > 0:
+        raise DescriptionError(f"{where}.still_speed: must be a number above 0, got {still_speed!r}")
     return GripperSpec(
         group=_field(value, "group", str, where),
         actuator=_field(value, "actuator", str, where),
@@ -335,6 +342,7 @@ def _gripper(value: Any, where: str) -> GripperSpec:
         open=float(grasp_open),
         pads=(sides[0], sides[1]),
         limits=_limits(_field(value, "limits", dict, where), f"{where}.limits"),
+        still_speed=float(still_speed),
     )
 
 

@@ -28,6 +28,7 @@ class Gripper:
         open: the opening that grasps and releases (m per finger).
         pads: geom ids of each side's pads (a grasp needs both sides touching).
         limits: the opening's velocity, acceleration and jerk limits (m/s^k per finger).
+        still_speed: the finger joints' speed (their units per s) under which closed fingers have settled.
     """
 
     group: str
@@ -37,6 +38,7 @@ class Gripper:
     open: float
     pads: tuple[np.ndarray, np.ndarray]
     limits: JointLimitSpec
+    still_speed: float
 
     @property
     def lower(self) -> float:

@@ -209,6 +209,7 @@ class Robot:
                 open=description.open,
                 pads=(pads[0], pads[1]),
                 limits=description.limits,
+                still_speed=description.still_speed,
             )
         return RobotArm(name, spec.groups, spec.tcp.site, gripper)
 

@@ -300,10 +300,6 @@ class GripperMotion(Motion):
     _goal: float = field(default=0.0, init=False, repr=False)
     _fingers: np.ndarray | None = field(default=None, init=False, repr=False)  # positions of recent cycles
     moves_gripper: ClassVar[bool] = True
-    # The fingers have settled when, over the settle window, they moved less than this speed (joint units per
-    # s) would take them: a net motion, not the instantaneous speed, because fingers that squeeze an object
-    # another hand also holds chatter in place (+-1.5e-3 rad/s on OpenArm, 1e-6 rad net).
-    still_speed: ClassVar[float] = 1e-3
 
     def begin(self, executor: Executor) -> None:
         if executor.hand is None:
@@ -327,7 +323,10 @@ class GripperMotion(Motion):
         closed_on_limit = self._goal <= executor.gripper_stream.lower[0] + 1e-9
         commanded_done = (np.abs(opening - self._goal) < 1e-9) | (closed_on_limit & (np.abs(speed) < 1e-9))
         window = executor.config.settle_cycles
-        allowed = self.still_speed * window * executor.config.control_period
+        # The fingers have settled when, over the settle window, they moved less than the gripper's still
+        # speed would take them: a net motion, not the instantaneous speed, because fingers that squeeze an
+        # object another hand also holds chatter in place (+-1.5e-3 rad/s on OpenArm, 1e-6 rad net).
+        allowed = executor.arm.gripper.still_speed * window * executor.config.control_period
         fingers = chunk.fingers if self._fingers is None else np.concatenate([self._fingers, chunk.fingers])
         before = len(fingers) - len(chunk)  # rows of earlier chunks at the front
         self._fingers = fingers[-window:]

@@ -72,6 +72,7 @@ def test_bad_arm_and_gripper_descriptions_name_the_field(tmp_path):
         (("arms", "arm", "gripper", "open"), 0.2, "arms.arm.gripper.open: must lie in the opening's range"),
         (("arms", "arm", "gripper", "command"), [0, 1], "opening and command must be matching lists"),
         (("arms", "arm", "gripper", "pads"), [["gripper/right_pad1"]], "expected two lists of geom names"),
+        (("arms", "arm", "gripper", "still_speed"), 0, "gripper.still_speed: must be a number above 0"),
         (
             ("arms", "arm", "gripper", "actuator"),
             "thumb",
