@@ -12,12 +12,10 @@ from besman.learning.contextual_search import (
     ContextualCMAES,
     ContextualCMAESConfig,
     CREPSConfig,
-    context_features,
     contextual_population_size,
     contextual_search,
-    solve_creps_dual,
-    weighted_ridge,
 )
+from besman.learning.linear_gaussian import context_features, solve_creps_dual, weighted_ridge
 from besman.skills.errors import InputError
 
 PARAMETERS, CONTEXT_DIMENSIONS = 5, 2
