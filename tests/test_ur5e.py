@@ -110,6 +110,20 @@ def test_tasks_show_the_pick_and_place_box_of_each_robot(capsys):
     assert shown["layout"]["shelf"] == {"height": 0.9, "x": [0.15, 0.6], "y": [-0.55, -0.25]}
 
 
+def test_the_demos_next_step_on_the_ur5e_runs_there(capsys, tmp_path):
+    """The default demo's hint names a run of the same tree on the robot that ran it, and that run works."""
+    import shlex
+
+    code, out, _ = run_cli(capsys, "demo", "--robot", "ur5e")
+    hint = out.splitlines()[-1].strip()
+    assert code == 0 and hint.startswith("besman run ") and "--robot ur5e" in hint
+    argv = shlex.split(hint)[2:]
+    argv[0] = str(Path(__file__).resolve().parents[1] / argv[0])  # examples/trees/... of the checkout
+    argv[argv.index("--log") + 1] = str(tmp_path / "run.jsonl")
+    code, out, _ = run_cli(capsys, "run", *argv)
+    assert code == 0 and out.startswith("SUCCESS"), out
+
+
 def _run(name: str, seed: int) -> tuple[dict, list[str]]:
     prepared = prepare_demo(name, seed, {"robot": "ur5e"})
     summary = prepared.judge(prepared.runner.run())

@@ -159,12 +159,16 @@ def _demo(args: argparse.Namespace) -> int:
     summary, viewers = _watched_demo(args, chosen, options)
     _print_summary(summary, args.json)
     if not args.json and chosen.name == "grasp-then-place":
+        elsewhere = (  # a configuration of the robot's own tabletop: AILA's below, any robot's by a seed
+            "--set object=0.5,-0.05 --set place=0.58,-0.44"
+            if args.robot == "aila"
+            else f"--robot {args.robot} --seed 1"
+        )
         print(
             "next: watch it in the browser (besman demo --view), see the other demos (besman demo --list), "
             "or run the same tree as a file elsewhere on the table with a log:\n"
             "  besman examples --copy .\n"
-            "  besman run examples/trees/grasp_then_place.yaml --set object=0.5,-0.05 --set place=0.58,-0.44 "
-            "--log run.jsonl"
+            f"  besman run examples/trees/grasp_then_place.yaml {elsewhere} --log run.jsonl"
         )
     return serve(viewers, 0 if summary.success else 1)
 
