@@ -141,6 +141,9 @@ def test_learned_benchmark_compares_the_three_trees_as_json():
     for name, row in report["trees"].items():
         assert 0.0 <= row["success_rate"] <= 1.0
         assert row["mean_episode_s"] > 0 and row["mean_path_length_m"] > 0
+        placed = row["mean_path_length_to_placement_m"]
+        assert 0 < placed <= row["mean_path_length_m"]  # the learned tree's return home comes after
+        assert (placed == row["mean_path_length_m"]) == (name == "ik")
         assert row["met"] is None if name == "ik" else row["met"] in (True, False)
 
 
