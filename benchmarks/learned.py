@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import time
 from pathlib import Path
 
 import numpy as np
@@ -67,10 +66,7 @@ def trees(pool: Path) -> dict:
 
 def episode(build, tau: np.ndarray, robot: str) -> dict:
     runner, _ = tabletop_run(build(), {"object": tuple(tau[:2]), "place": tuple(tau[2:])}, robot=robot)
-    started = time.perf_counter()
-    result = runner.run()
-    wall = time.perf_counter() - started
-    outcome = summary(runner, result)
+    outcome = summary(runner, runner.run())
     executor = runner.executor
     log, period = executor.log, executor.config.control_period
     placed = log.times <= placing_end(runner)
@@ -81,7 +77,7 @@ def episode(build, tau: np.ndarray, robot: str) -> dict:
         "success": outcome.success and error is not None,  # a tree that places
         "placement_error_m": error,
         "episode_s": outcome.sim_time_s,
-        "wall_s": wall,
+        "wall_s": outcome.wall_time_s,
         "message": outcome.message,
         **whole,
         **{f"{name}_to_placement": value for name, value in to_placement.items()},

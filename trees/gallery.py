@@ -47,7 +47,7 @@ from besman.trees.files import load_tree
 from besman.trees.runner import Runner, RunResult
 from besman.trees.summary import Measured, RunSummary
 from besman.trees.tabletop import MEASUREMENTS as TABLETOP_MEASUREMENTS
-from besman.trees.tabletop import summary as tabletop_summary
+from besman.trees.tabletop import measure as measure_tabletop
 from besman.trees.tabletop import tabletop_run
 
 EXAMPLES = examples.path("trees")
@@ -58,12 +58,15 @@ Observer = Callable[[Runner, dict], None]
 
 @dataclass(frozen=True)
 class DemoRun:
-    """A prepared run: the runner (not started), the configuration it was given, and the judge of its
-    result (its :class:`~besman.trees.summary.RunSummary`)."""
+    """A prepared run: the runner (not started; its configuration is in ``runner.run_info``) and what the
+    demo measures in the simulation once the run has ended."""
 
     runner: Runner
-    settings: dict
-    judge: Callable[[RunResult], RunSummary]
+    measure: Callable[[], Measured]
+
+    def judge(self, result: RunResult) -> RunSummary:
+        """The summary of the run that ended with ``result``."""
+        return RunSummary.of(self.runner, result, self.measure())
 
 
 @dataclass(frozen=True)
@@ -158,11 +161,10 @@ def grasp_then_place_values(robot: str, seed: int | None) -> dict[str, tuple[flo
 def _grasp_then_place(seed: int | None, options: Mapping, observe: Observer | None) -> DemoRun:
     robot = options["robot"]
     values = grasp_then_place_values(robot, seed)
-    runner, settings = tabletop_run(EXAMPLES / "grasp_then_place.yaml", values, seed=seed, robot=robot)
+    runner, _ = tabletop_run(EXAMPLES / "grasp_then_place.yaml", values, seed=seed, robot=robot)
     runner.observe = observe
-
     runner.run_info["demo"] = "grasp-then-place"
-    return DemoRun(runner, settings, lambda result: tabletop_summary(runner, result))
+    return DemoRun(runner, lambda: measure_tabletop(runner))
 
 
 # -- sort --------------------------------------------------------------------------------------------------
@@ -240,13 +242,13 @@ def _sort(seed: int | None, options: Mapping, observe: Observer | None) -> DemoR
         robot=robot,
     )
 
-    def judge(result: RunResult) -> RunSummary:
+    def measure() -> Measured:
         errors = {
             name: float(np.linalg.norm(world.object_pose(name).position[:2] - places[name])) for name in names
         }
         shown = ", ".join(f"{name} {error * 100:.1f} cm" for name, error in errors.items())
         slipped = slip.object if slip.done else None
-        measured = Measured(
+        return Measured(
             max(errors.values()) <= PLACE_TOLERANCE and slip.done,
             f"placement errors {shown}; {slipped or 'no box'} slipped and was grasped again",
             {
@@ -254,9 +256,8 @@ def _sort(seed: int | None, options: Mapping, observe: Observer | None) -> DemoR
                 "slipped": slipped,
             },
         )
-        return RunSummary.of(runner, result, measured)
 
-    return DemoRun(runner, settings, judge)
+    return DemoRun(runner, measure)
 
 
 # -- handover ----------------------------------------------------------------------------------------------
@@ -312,9 +313,9 @@ def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> D
         "handover", root, right, seed, settings, 120.0, observers(contacts, observe), robot=options["robot"]
     )
 
-    def judge(result: RunResult) -> RunSummary:
+    def measure() -> Measured:
         error = float(np.linalg.norm(world.object_pose("bar").position[:2] - place))
-        measured = Measured(
+        return Measured(
             error <= PLACE_TOLERANCE and contacts.touching == 0,
             f"placement error {error * 100:.1f} cm; the arms came within {contacts.closest * 100:.1f} cm "
             f"and touched at {contacts.touching} ticks",
@@ -324,9 +325,8 @@ def _handover(seed: int | None, options: Mapping, observe: Observer | None) -> D
                 "arms_closest_m": round(contacts.closest, 4),
             },
         )
-        return RunSummary.of(runner, result, measured)
 
-    return DemoRun(runner, settings, judge)
+    return DemoRun(runner, measure)
 
 
 # -- throw -------------------------------------------------------------------------------------------------
@@ -365,11 +365,11 @@ def _throw(seed: int | None, options: Mapping, observe: Observer | None) -> Demo
         options={"target": target.tolist()},
     )
 
-    def judge(result: RunResult) -> RunSummary:
+    def measure() -> Measured:
         flight = executor.throw
         landing = None if flight is None or flight.landing is None else np.round(flight.landing, 3)
         miss = None if landing is None else float(np.linalg.norm(flight.landing - target))
-        measured = Measured(
+        return Measured(
             miss is not None and miss <= THROW_TOLERANCE,
             "no landing"
             if landing is None
@@ -380,9 +380,8 @@ def _throw(seed: int | None, options: Mapping, observe: Observer | None) -> Demo
                 "miss_m": None if miss is None else round(miss, 3),
             },
         )
-        return RunSummary.of(runner, result, measured)
 
-    return DemoRun(runner, settings, judge)
+    return DemoRun(runner, measure)
 
 
 DEMOS: dict[str, Demo] = {

@@ -101,26 +101,29 @@ MEASUREMENTS = {
 }
 
 
-def summary(runner: Runner, result: RunResult) -> RunSummary:
-    """A tabletop run's summary: done when the box stands within
+def measure(runner: Runner) -> Measured:
+    """What a tabletop run left (:data:`MEASUREMENTS`): done when the box stands within
     :data:`~besman.sim.pick_place.PLACE_TOLERANCE` of its place, for a tree that reads the place target (one
-    that does not places nothing and is judged by its status alone); :data:`MEASUREMENTS`."""
+    that does not places nothing and is judged by its status alone)."""
     box = runner.executor.world.object_pose("box").position
-    places = "place" in task_keys_read(runner.root)
     error = None
-    if places:
+    if "place" in task_keys_read(runner.root):
         error = float(np.linalg.norm(box[:2] - np.asarray(runner.run_info["settings"]["place"])))
     outcome = (
         f"placement error {error * 100:.1f} cm"
         if error is not None
         else "box at ({:.3f}, {:.3f}, {:.3f}) m".format(*box)
     )
-    measured = Measured(
+    return Measured(
         error is None or error <= PLACE_TOLERANCE,
         outcome,
         {"placement_error_m": error, "box_position": [round(float(v), 4) for v in box]},
     )
-    return RunSummary.of(runner, result, measured)
+
+
+def summary(runner: Runner, result: RunResult) -> RunSummary:
+    """A tabletop run's summary: its :func:`measure` beside how the run ended."""
+    return RunSummary.of(runner, result, measure(runner))
 
 
 def replay(path: str | Path) -> list[dict[str, str]]:
