@@ -13,6 +13,7 @@ import sys
 import time
 from collections.abc import Iterator, Sequence
 
+from besman import stopped
 from besman._version import __version__
 from besman.commands import examples, learning, pool, recordings, robots, tasks, trees, viewing
 
@@ -49,14 +50,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.print_help(sys.stderr)
             return 2
         return args.handler(args)
-    except KeyboardInterrupt:
-        print(f"besman: interrupted{_kept(args, started)}", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (besman.main)
+        return stopped(_kept(args, started))
     except ImportError as error:
         if not interrupted(error):
             raise
-        print(f"besman: interrupted{_kept(args, started)}", file=sys.stderr)
-        return 130
+        return stopped(_kept(args, started))
     except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)

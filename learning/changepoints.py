@@ -48,12 +48,21 @@ import numpy as np
 from scipy.special import gammaln
 
 from besman.skills.errors import InputError
+from besman.skills.validation import checked, instance, integer, non_negative, optional, positive, text
 
 # log(sum(exp(x))) along an axis (default 0), as a numpy ufunc reduction: the recursions below call it once
 # per sample on short vectors, where scipy.special.logsumexp's dispatch costs ~0.3 ms a call (35x more).
 log_sum_exp = np.logaddexp.reduce
 
 
+@checked(
+    name=text("a model name"),
+    degree=integer(-1),
+    bump_scale=positive,
+    min_length=non_negative,
+    weight=positive,
+    hold=instance(bool, "True or False"),
+)
 @dataclass(frozen=True)
 class SegmentModel:
     """A linear regression model of one segment.
@@ -186,6 +195,14 @@ class JointModel:
         return cls(model.name, (model,), model.weight, model.hold)
 
 
+@checked(
+    noise=optional(positive),
+    noise_factor=positive,
+    nu=positive,
+    expected_length=positive,
+    min_length=non_negative,
+    hold_weight=positive,
+)
 @dataclass(frozen=True)
 class SegmentationPrior:
     """Hyperparameters. ``noise`` None means: estimated from the data's first differences."""

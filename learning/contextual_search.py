@@ -89,7 +89,7 @@ from besman.learning.linear_gaussian import (
 )
 from besman.learning.policy_search import WarmStart
 from besman.skills.errors import InputError
-from besman.skills.validation import finite_array
+from besman.skills.validation import SEED, checked, finite_array
 
 
 class ContextualOptimizer(Protocol):
@@ -250,8 +250,7 @@ class _LinearGaussianPolicySearch:
         window: int,
     ) -> None:
         self._start = WarmStart(mean, spread)
-        if not isinstance(seed, int | np.integer):
-            raise InputError(f"seed must be an integer, got {seed!r}")
+        seed = SEED(f"learning.{type(self).__name__}: seed", seed)
         self.context_dimensions = _context_dimensions(context_box, context_dimensions)
         self.parameters = self._start.mean.size
         self._box = context_box
@@ -500,6 +499,7 @@ class ContextualSearchResult:
         return len(self.rewards)
 
 
+@checked(seed=SEED)
 def contextual_search(
     objective: Objective,
     optimizer: ContextualOptimizer,

@@ -21,14 +21,18 @@ marker - raises :class:`DemonstrationError` naming the file, line or marker.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import io
+from array import array
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from besman.skills.errors import BesmanError
+from besman.skills.reading import Limit, read_bytes
 from besman.skills.storage import npz_bytes, read_json, read_npz, require_field, write_atomically
+from besman.skills.validation import COUNT, PATH, checked, instance, items, optional, shaped, text
 
 SCHEMA_VERSION = 1
 AXES = ("X", "Y", "Z")
@@ -98,6 +102,7 @@ class Demonstration:
             for a, b in zip(edges[::2], edges[1::2], strict=True)
         ]
 
+    @checked(labels=optional(items(text("a label"), "a list of labels")))
     def boundary_frames(self, labels: Sequence[str] | None = None) -> list[int]:
         """Sorted start and end frames of the annotated segments (only those with one of ``labels``)."""
         return sorted(
@@ -109,11 +114,10 @@ class Demonstration:
             }
         )
 
+    @checked(times=shaped())
     def nearest_indices(self, times: np.ndarray) -> np.ndarray:
         """The sample index nearest to each time (s)."""
-        return np.clip(
-            np.searchsorted(self.times, np.asarray(times) - 0.5 / self.rate), 0, len(self.times) - 1
-        )
+        return np.clip(np.searchsorted(self.times, times - 0.5 / self.rate), 0, len(self.times) - 1)
 
     def frame_index(self, frame: int) -> int:
         """The sample index of a frame number."""
@@ -124,6 +128,7 @@ class Demonstration:
             )
         return index
 
+    @checked(path=PATH)
     def save(self, path: str | Path) -> Path:
         """Writes the demonstration as NPZ (atomically)."""
         arrays = {"schema_version": np.array(SCHEMA_VERSION), "times": self.times, "frames": self.frames}
@@ -131,8 +136,13 @@ class Demonstration:
         return write_atomically(path, npz_bytes(arrays))
 
 
+DEMONSTRATION = instance(Demonstration, "a Demonstration (learning.load)")
+
+
+@checked(path=PATH)
 def load(path: str | Path, **options) -> Demonstration:
-    """Loads a demonstration, choosing the reader by suffix (``.tsv``, ``.csv``, ``.npz``)."""
+    """Loads a demonstration, choosing the reader by suffix (``.tsv``, ``.csv``, ``.npz``); ``options`` are
+    the reader's (an option it does not take is refused by name)."""
     path = Path(path)
     readers = {".tsv": load_qualisys_tsv, ".csv": load_csv, ".npz": load_npz}
     if path.suffix.lower() not in readers:
@@ -140,17 +150,33 @@ def load(path: str | Path, **options) -> Demonstration:
     return readers[path.suffix.lower()](path, **options)
 
 
-def _read_text(path: Path) -> list[str]:
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise DemonstrationError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise DemonstrationError(f"{path}: a directory, not a recording") from None
+# Recordings are refused above this size (the DFKI recordings are 0.15-0.35 MB: about 1000 rows of 41
+# columns at 60 Hz; this holds some 190,000 such rows, 50 minutes), unless the variable or a caller's
+# max_bytes raises it.
+RECORDING_LIMIT = Limit(64_000_000, "BESMAN_MAX_RECORDING_BYTES")
+# Values a text recording may hold: one per 4 bytes of its limit (the DFKI recordings have one per 8 bytes),
+# so that reading one takes at most about 6 times the limit in memory, whatever its shape (docs/learning.md).
+BYTES_PER_VALUE = 4
+
+
+def read_recording(path: Path, max_bytes: int | None = None) -> bytes:
+    """The bytes of a recording file: a regular file within :data:`RECORDING_LIMIT` (or ``max_bytes``)."""
+    limit, advice = RECORDING_LIMIT.bytes(max_bytes), RECORDING_LIMIT.advice
+    return read_bytes(path, limit, what="recording", error=DemonstrationError, raise_with=advice)
+
+
+def _lines(path: Path, limit: int) -> Iterator[tuple[int, str]]:
+    """The numbered lines of a text recording, one at a time (no list of them all: a file of millions of
+    short rows would need gigabytes for it)."""
+    data = read_recording(path, limit)
     if b"\x00" in data[:4096]:
         raise DemonstrationError(f"{path}: a binary file, not a text recording")
-    # Exports may carry a stray non-UTF-8 byte in a description; the numbers are ASCII either way.
-    return data.decode("utf-8", errors="replace").splitlines()
+    number = 0
+    for raw in io.BytesIO(data):
+        # Exports may carry a stray non-UTF-8 byte in a description; the numbers are ASCII either way.
+        for line in raw.decode("utf-8", errors="replace").splitlines():
+            number += 1
+            yield number, line
 
 
 MAX_MAGNITUDE = 1e9  # no time (s), frame number or coordinate (mm) of a recording is this large
@@ -199,36 +225,54 @@ def _check_clock(path: Path, times: np.ndarray, frames: np.ndarray, lines: np.nd
         raise DemonstrationError(f"{where(row)}: Frame must increase ({frames[row - 1]} then {frames[row]})")
 
 
-def load_qualisys_tsv(path: str | Path) -> Demonstration:
-    """Reads a Qualisys TSV export (see the module documentation)."""
-    path = Path(path)
-    lines = _read_text(path)
-    header_line = next((i for i, line in enumerate(lines) if line.split("\t")[:1] == ["Frame"]), None)
-    if header_line is None:
-        raise DemonstrationError(f"{path}: no column header line starting with 'Frame' and 'Time'")
-    names = [name for name in lines[header_line].rstrip("\n").split("\t")]
-    while names and not names[-1].strip():
-        names.pop()  # exports end the header line with a tab
-    if names[:2] != ["Frame", "Time"]:
-        raise DemonstrationError(
-            f"{path}:{header_line + 1}: the columns must start with Frame and Time, got {names[:2]}"
-        )
-    rows, numbers = [], []
-    for number, line in enumerate(lines[header_line + 1 :], header_line + 2):
+def _table(
+    lines: Iterator[tuple[int, str]], path: Path, names: list[str], separator: str, limit: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of numbers under a header of ``names`` as a (rows, columns) array, and each row's line
+    number. The values are stored flat as they are parsed: 8 bytes each, at most one per
+    :data:`BYTES_PER_VALUE` bytes of the recording's size ``limit``."""
+    values, numbers = array("d"), array("q")
+    for number, line in lines:
         if not line.strip():
             continue
-        cells = line.split("\t")
+        cells = line.split(separator)
         while len(cells) > len(names) and not cells[-1].strip():
-            cells.pop()
+            cells.pop()  # exports end each line with a separator
         if len(cells) != len(names):
             raise DemonstrationError(
                 f"{path}:{number}: {len(cells)} values for {len(names)} columns (truncated or damaged file)"
             )
-        rows.append(_numbers(cells, path, number, names))
+        values.extend(_numbers(cells, path, number, names))
         numbers.append(number)
-    if len(rows) < 2:
+        if len(values) > limit // BYTES_PER_VALUE:
+            raise DemonstrationError(
+                f"{path}:{number}: more than {limit // BYTES_PER_VALUE} values, the most a recording of at "
+                f"most {limit} bytes may hold (one per {BYTES_PER_VALUE} bytes); {RECORDING_LIMIT.advice}"
+            )
+    if len(numbers) < 2:
         raise DemonstrationError(f"{path}: fewer than 2 rows of data")
-    data = np.array(rows)
+    return np.frombuffer(values).reshape(len(numbers), len(names)), np.frombuffer(numbers, dtype=np.int64)
+
+
+@checked(path=PATH, max_bytes=optional(COUNT))
+def load_qualisys_tsv(path: str | Path, *, max_bytes: int | None = None) -> Demonstration:
+    """Reads a Qualisys TSV export (see the module documentation); ``max_bytes`` replaces the size limit
+    (:data:`RECORDING_LIMIT`)."""
+    path, limit = Path(path), RECORDING_LIMIT.bytes(max_bytes)
+    lines = _lines(path, limit)
+    header_line, header = next(
+        ((n, line) for n, line in lines if line.split("\t")[:1] == ["Frame"]), (0, None)
+    )
+    if header is None:
+        raise DemonstrationError(f"{path}: no column header line starting with 'Frame' and 'Time'")
+    names = header.split("\t")
+    while names and not names[-1].strip():
+        names.pop()  # exports end the header line with a tab
+    if names[:2] != ["Frame", "Time"]:
+        raise DemonstrationError(
+            f"{path}:{header_line}: the columns must start with Frame and Time, got {names[:2]}"
+        )
+    data, numbers = _table(lines, path, names, "\t", limit)
     if np.isnan(data[:, :2]).any():
         row = int(np.argwhere(np.isnan(data[:, :2]))[0, 0])
         raise DemonstrationError(f"{path}:{numbers[row]}: Frame and Time must be numbers")
@@ -236,7 +280,7 @@ def load_qualisys_tsv(path: str | Path) -> Demonstration:
     for column, name in enumerate(names[2:], 2):
         marker, _, axis = name.rpartition(" ")
         if axis not in AXES or not marker:
-            raise DemonstrationError(f"{path}:{header_line + 1}: column {name!r} is not '<marker> X|Y|Z'")
+            raise DemonstrationError(f"{path}:{header_line}: column {name!r} is not '<marker> X|Y|Z'")
         channels.setdefault(marker, np.full((len(data), 3), np.nan))[:, AXES.index(axis)] = (
             data[:, column] / 1000.0
         )
@@ -244,7 +288,7 @@ def load_qualisys_tsv(path: str | Path) -> Demonstration:
         if np.isnan(values).all():
             raise DemonstrationError(f"{path}: marker {marker!r} has no valid sample (all null)")
     times, frames = data[:, 1], data[:, 0].astype(int)
-    _check_clock(path, times, frames, np.array(numbers))
+    _check_clock(path, times, frames, numbers)
     return Demonstration(times, frames, channels, str(path), "m", _ground_truth(path, frames))
 
 
@@ -253,7 +297,7 @@ def _ground_truth(path: Path, frames: np.ndarray) -> tuple[Segment, ...]:
     if not sidecar.exists():
         return ()
     segments = []
-    for number, entry in enumerate(read_json(sidecar, DemonstrationError, top=list)):
+    for number, entry in enumerate(read_json(sidecar, DemonstrationError, top=list, what="segmentation")):
         where = f"{sidecar}[{number}]"
         if not isinstance(entry, dict):
             raise DemonstrationError(f"{where}: expected a segment object, got {entry!r}")
@@ -270,38 +314,33 @@ def _ground_truth(path: Path, frames: np.ndarray) -> tuple[Segment, ...]:
     return tuple(segments)
 
 
-def load_csv(path: str | Path, *, time_column: str = "time", units: str = "m") -> Demonstration:
-    """Reads a CSV with a time column and ``<channel>_x/_y/_z`` columns (``units`` "m" or "mm")."""
+@checked(path=PATH, time_column=text("a column name"), units=text("a unit"), max_bytes=optional(COUNT))
+def load_csv(
+    path: str | Path, *, time_column: str = "time", units: str = "m", max_bytes: int | None = None
+) -> Demonstration:
+    """Reads a CSV with a time column and ``<channel>_x/_y/_z`` columns (``units`` "m" or "mm");
+    ``max_bytes`` replaces the size limit (:data:`RECORDING_LIMIT`)."""
     path = Path(path)
     if units not in ("m", "mm"):
         raise DemonstrationError(f"{path}: units must be 'm' or 'mm', got {units!r}")
-    lines = _read_text(path)
-    if not lines:
+    limit = RECORDING_LIMIT.bytes(max_bytes)
+    lines = _lines(path, limit)
+    _, header = next(lines, (0, None))
+    if header is None:
         raise DemonstrationError(f"{path}: empty file")
-    names = [name.strip() for name in lines[0].split(",")]
+    names = [name.strip() for name in header.split(",")]
     if not all(name.isprintable() for name in names):
         raise DemonstrationError(f"{path}:1: not a CSV header line (unprintable characters)")
     if time_column not in names:
         shown = ", ".join(names[:20]) + (", ..." if len(names) > 20 else "")
         raise DemonstrationError(f"{path}:1: no time column {time_column!r}; columns: {shown}")
-    rows, numbers = [], []
-    for number, line in enumerate(lines[1:], 2):
-        if not line.strip():
-            continue
-        cells = line.split(",")
-        if len(cells) != len(names):
-            raise DemonstrationError(f"{path}:{number}: {len(cells)} values for {len(names)} columns")
-        rows.append(_numbers(cells, path, number, names))
-        numbers.append(number)
-    if len(rows) < 2:
-        raise DemonstrationError(f"{path}: fewer than 2 rows of data")
-    data = np.array(rows)
+    data, numbers = _table(lines, path, names, ",", limit)
     times = data[:, names.index(time_column)]
     if np.isnan(times).any():
         raise DemonstrationError(
             f"{path}:{numbers[int(np.argmax(np.isnan(times)))]}: {time_column!r} is empty"
         )
-    _check_clock(path, times, np.arange(len(times)), np.array(numbers))
+    _check_clock(path, times, np.arange(len(times)), numbers)
     channels: dict[str, np.ndarray] = {}
     scale = 0.001 if units == "mm" else 1.0
     for column, name in enumerate(names):
@@ -316,10 +355,12 @@ def load_csv(path: str | Path, *, time_column: str = "time", units: str = "m") -
     return Demonstration(times, np.arange(len(times)), channels, str(path), "m")
 
 
-def load_npz(path: str | Path) -> Demonstration:
-    """Reads a demonstration saved with :meth:`Demonstration.save`."""
+@checked(path=PATH, max_bytes=optional(COUNT))
+def load_npz(path: str | Path, *, max_bytes: int | None = None) -> Demonstration:
+    """Reads a demonstration saved with :meth:`Demonstration.save` (``max_bytes`` as for TSV)."""
     path = Path(path)
-    arrays = read_npz(path)
+    limit, advice = RECORDING_LIMIT.bytes(max_bytes), RECORDING_LIMIT.advice
+    arrays = read_npz(path, what="recording", max_bytes=limit, raise_with=advice)
     if "schema_version" not in arrays or int(arrays["schema_version"]) != SCHEMA_VERSION:
         raise DemonstrationError(f"{path}: not a besman demonstration (schema_version {SCHEMA_VERSION})")
     for key in ("times", "frames"):

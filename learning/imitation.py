@@ -14,12 +14,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from besman.learning.demonstration import Demonstration
-from besman.learning.labelling import DemonstrationSegment
+from besman.learning.labelling import SEGMENTS, DemonstrationSegment
 from besman.learning.preprocessing import hand_pose, smooth
 from besman.skills.cartesian_dmp import CartesianDMP
 from besman.skills.dmp_core import DMPSettings
 from besman.skills.errors import InputError
 from besman.skills.primitive import MovementPrimitive
+from besman.skills.validation import checked, integer, positive, text
 
 HAND_MARKERS = ("Hand top", "Hand left", "Hand right")
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
@@ -33,6 +34,13 @@ def _pose(demo: Demonstration, marker: str) -> tuple[np.ndarray, np.ndarray, str
     return positions, np.tile(IDENTITY, (len(positions), 1)), f"position of {marker}, fixed orientation"
 
 
+@checked(
+    segments=SEGMENTS,
+    name=text("a primitive name"),
+    marker=text("a marker name"),
+    n_weights=integer(2),
+    dt=positive,
+)
 def imitate(
     segments: Sequence[DemonstrationSegment],
     *,

@@ -25,12 +25,16 @@ from sklearn.cluster import AgglomerativeClustering
 from sklearn.neighbors import KNeighborsClassifier
 from sklearn.preprocessing import StandardScaler
 
-from besman.learning.demonstration import Demonstration, DemonstrationError
+from besman.learning.demonstration import DEMONSTRATION, Demonstration, DemonstrationError
 from besman.learning.preprocessing import resample, smooth
 from besman.learning.segmentation import Segmentation
 from besman.skills.errors import InputError
+from besman.skills.validation import COUNT, checked, instance, integer, items, optional, text
+
+LABELS = instance(list | tuple | np.ndarray, "a list of labels")
 
 
+@checked(start=integer(0), end=integer(0), label=optional(text("a label")))
 @dataclass(frozen=True, eq=False)
 class DemonstrationSegment:
     """Samples ``start`` to ``end`` (inclusive indices) of a demonstration, with a label once known."""
@@ -40,17 +44,26 @@ class DemonstrationSegment:
     end: int
     label: str | None = None
 
+    def __post_init__(self) -> None:
+        if self.start > self.end:
+            raise InputError(f"learning.DemonstrationSegment: start {self.start} is after end {self.end}")
+
     @property
     def duration(self) -> float:
         return float(self.demo.times[self.end] - self.demo.times[self.start])
 
 
+SEGMENTS = items(instance(DemonstrationSegment, "a DemonstrationSegment"), "a list of segments")
+
+
+@checked(demo=DEMONSTRATION, segmentation=instance(Segmentation, "a Segmentation (learning.segment)"))
 def segments_of(demo: Demonstration, segmentation: Segmentation) -> list[DemonstrationSegment]:
     """The segments a segmentation found, unlabelled."""
     bounds = segmentation.boundaries
     return [DemonstrationSegment(demo, int(a), int(b)) for a, b in itertools.pairwise(bounds)]
 
 
+@checked(demo=DEMONSTRATION, labels=optional(items(text("a label"), "a list of labels")))
 def ground_truth_segments(
     demo: Demonstration, labels: Sequence[str] | None = None
 ) -> list[DemonstrationSegment]:
@@ -98,6 +111,7 @@ def _features(raw: np.ndarray, scaler: StandardScaler) -> np.ndarray:
     return standardised * weights
 
 
+@checked(segments=SEGMENTS, n_blocks=COUNT, marker=text("a marker name"))
 def cluster(
     segments: Sequence[DemonstrationSegment], n_blocks: int, *, marker: str = "Hand top"
 ) -> np.ndarray:
@@ -109,6 +123,7 @@ def cluster(
     return AgglomerativeClustering(n_clusters=n_blocks, linkage="ward").fit_predict(features)
 
 
+@checked(labelled=SEGMENTS, segments=SEGMENTS, marker=text("a marker name"))
 def label_few_shot(
     labelled: Sequence[DemonstrationSegment],
     segments: Sequence[DemonstrationSegment],
@@ -128,8 +143,14 @@ def label_few_shot(
     return [str(label) for label in classifier.predict(_features(raw, scaler))]
 
 
+@checked(true_labels=LABELS, predicted=LABELS)
 def grouping_accuracy(true_labels: Sequence, predicted: Sequence) -> float:
     """Fraction of segments in the right group after the optimal one-to-one matching of groups to labels."""
+    if len(true_labels) != len(predicted) or len(predicted) == 0:
+        raise InputError(
+            f"learning.grouping_accuracy: needs as many predicted labels as true ones (at least one), got "
+            f"{len(predicted)} and {len(true_labels)}"
+        )
     true_names, true_index = np.unique(np.asarray(true_labels, dtype=str), return_inverse=True)
     predicted_names, predicted_index = np.unique(np.asarray(predicted, dtype=str), return_inverse=True)
     counts = np.zeros((len(true_names), len(predicted_names)))

@@ -22,8 +22,8 @@ result to ``POOL/work/`` as soon as it is complete:
    over the block's tau box), CMA-ES refines the primitive's forcing weights from the retargeted ones by
    rollouts of that block alone in MuJoCo, through the Ruckig executor, followed by the planned motions
    that decide its success (:mod:`besman.sim.blocks`: reward for success, smoothness, joint-limit margin
-   and no collisions). Each task's search is seeded by its own index, so an interrupted run that resumes
-   gets the same results.
+   and no collisions). Each task's search is seeded by the run's seed, its block and its index
+   (:func:`~besman.skills.seeds.child_seed`), so an interrupted run that resumes gets the same results.
 6. **Templates**: one skill template per block over its tau (the K refined thetas; the shared-kernel model
    with its default kernel, fixed before any learn, and the refinement's spread as the prior exploration of
    the forcing weights, which are all that was searched), stored in the pool with their provenance:
@@ -48,7 +48,7 @@ from scipy.stats import qmc
 from tqdm import tqdm
 
 import besman.robots as robots
-from besman.learning.demonstration import Demonstration, DemonstrationError, load
+from besman.learning.demonstration import Demonstration, DemonstrationError, load, read_recording
 from besman.learning.imitation import HAND_MARKERS, imitate
 from besman.learning.labelling import DemonstrationSegment, cluster, ground_truth_segments, label_few_shot
 from besman.learning.policy_search import CMAES, WarmStart, policy_search
@@ -66,7 +66,8 @@ from besman.sim.executor import Executor
 from besman.sim.world import tabletop_world
 from besman.skills import MovementPrimitive, SkillTemplate, SkillTemplatePool
 from besman.skills.errors import BesmanError
-from besman.skills.storage import read_json, remove_temporaries, sha256, write_atomically
+from besman.skills.seeds import child_seed
+from besman.skills.storage import holds_files, read_json, remove_temporaries, sha256, write_atomically
 from besman.skills.writer_lock import WriterLock
 
 SCHEMA_VERSION = 1
@@ -74,6 +75,8 @@ KIND = "besman-learn"
 SUFFIXES = (".tsv", ".csv", ".npz")
 CLUSTERED_ROLES = {"reach": "block4", "carry": "block5", "return": "block6"}
 EXAMPLE_ROLES = {"reach": "approach_right", "carry": "move_obj_shelf", "return": "move_to_rest_down"}
+# The folders in a pool that learn writes (besides the pool itself), where a killed learn leaves temporaries.
+POOL_FOLDERS = ("work", "work/segments", "work/imitated", "work/shapes", "work/refined")
 
 
 class LearnError(BesmanError):
@@ -202,7 +205,7 @@ class _Run:
         self.show_progress = show_progress
         self.files = recordings(demos)
         self.demos = [load_recording(path) for path in self.files]
-        self.checksums = [sha256(path.read_bytes()) for path in self.files]
+        self.checksums = [sha256(read_recording(path)) for path in self.files]
         self.examples = [load_recording(Path(path)) for path in settings.examples]
         for path, demo in zip(settings.examples, self.examples, strict=True):
             if not demo.segments:
@@ -231,11 +234,13 @@ class _Run:
     # -- the output folder ---------------------------------------------------------------------------------
 
     def claim_output(self, force: bool) -> None:
-        """Checks the output folder before anything is written (see :func:`learn`)."""
+        """Checks the output folder before anything is written (see :func:`learn`); then removes the
+        temporaries that a killed learn left, if the folder is known to be besman's (its record, or nothing
+        in it but besman's temporaries; never in a folder of the user's that ``force`` writes into)."""
         out, record_path = self.out, self.work / "learn.json"
         if out.exists() and not out.is_dir():
             raise LearnError(f"{out}: the output is a file, not a pool folder")
-        remove_temporaries(out)  # a learn killed mid-write left them
+        resume = False
         if record_path.is_file():
             try:
                 previous = read_json(record_path, LearnError)
@@ -248,21 +253,27 @@ class _Run:
                     f"{out}: the pool was learned for robot {previous.get('robot')!r}, not "
                     f"{self.settings.robot!r} (--force replaces it)"
                 )
-            if previous == self.record:
-                return  # resume
-            if not force:
+            ours, resume = previous is not None and previous.get("kind") == KIND, previous == self.record
+            if not resume:
+                if not force:
+                    raise LearnError(
+                        f"{out}: the pool was learned from other recordings or settings (see {record_path}); "
+                        "--force starts over"
+                    )
+                shutil.rmtree(self.work)
+        else:
+            # Files, not folders or besman's temporaries: a learn killed before its record leaves those.
+            ours = not holds_files(out)
+            if not ours and not force:
                 raise LearnError(
-                    f"{out}: the pool was learned from other recordings or settings (see {record_path}); "
-                    "--force starts over"
+                    f"{out}: the folder is not empty and not a pool learned by besman "
+                    "(--force writes into it)"
                 )
-            shutil.rmtree(self.work)
-        elif out.is_dir() and any(path.is_file() for path in out.rglob("*")) and not force:
-            # Files, not folders: a learn killed before it wrote its record leaves folders alone.
-            raise LearnError(
-                f"{out}: the folder is not empty and not a pool learned by besman (--force writes into it)"
-            )
-        self.work.mkdir(parents=True, exist_ok=True)
-        _write_json(record_path, self.record)
+        if not resume:
+            self.work.mkdir(parents=True, exist_ok=True)
+            _write_json(record_path, self.record)
+        if ours:
+            remove_temporaries(out, POOL_FOLDERS)
 
     # -- stages --------------------------------------------------------------------------------------------
 
@@ -405,7 +416,7 @@ class _Run:
             tasks_bar.update(done)
             for index, block in enumerate(BLOCKS):
                 bounds = block_bounds(block, settings.robot)
-                unit = qmc.LatinHypercube(d=len(bounds.names), seed=settings.seed * 101 + index).random(
+                unit = qmc.LatinHypercube(d=len(bounds.names), seed=child_seed(settings.seed, index)).random(
                     settings.tasks
                 )
                 taus = qmc.scale(unit, bounds.low, bounds.high)
@@ -424,7 +435,7 @@ class _Run:
                                 task,
                                 tau,
                                 settings,
-                                seed=settings.seed * 1009 + index * 101 + k,
+                                seed=child_seed(settings.seed, index, k),
                                 progress=bar.update,
                             )
                         _write_json(

@@ -24,14 +24,27 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import cma
 import numpy as np
 from scipy.linalg import expm
 
 from besman.skills.errors import InputError
-from besman.skills.validation import finite_array
+from besman.skills.seeds import cma_seed
+from besman.skills.validation import (
+    CALLABLE,
+    COUNT,
+    SEED,
+    checked,
+    finite_array,
+    instance,
+    integer,
+    items,
+    number,
+    optional,
+    shaped,
+)
 
 
 def default_population_size(dimensions: int) -> int:
@@ -87,6 +100,7 @@ class WarmStart:
         return self.spread if self.full else np.diag(self.spread**2)
 
 
+@runtime_checkable  # to check policy_search's optimizers
 class Optimizer(Protocol):
     """A population-based optimiser that maximises rewards."""
 
@@ -126,16 +140,20 @@ class _Whitened:
         return np.linalg.solve(self._factor, (theta - self.start.mean).T).T
 
 
+WARM_START = instance(WarmStart, "a WarmStart")
+
+
 class CMAES:
     """CMA-ES (pycma) warm-started from ``start``; ``seed`` fixes every sample (same seed, same search)."""
 
+    @checked(start=WARM_START, seed=SEED, population_size=optional(integer(2)))
     def __init__(self, start: WarmStart, *, seed: int, population_size: int | None = None) -> None:
         n = start.mean.size
         self.population_size = population_size or default_population_size(n)
         self._space = _Whitened(start)
         options = {
             "popsize": self.population_size,
-            "seed": seed + 1,  # pycma draws a random seed for 0
+            "seed": cma_seed(seed),
             "verbose": -9,
             "verb_log": 0,
             "verb_disp": 0,
@@ -151,6 +169,7 @@ class CMAES:
         self._asked = self._es.ask()
         return self._space.to_theta(np.array(self._asked))
 
+    @checked(rewards=shaped(ndim=1))
     def tell(self, thetas: np.ndarray, rewards: np.ndarray) -> None:
         if self._asked is None or len(rewards) != len(self._asked):
             raise InputError("tell() needs the rewards of the population last asked for")
@@ -170,6 +189,7 @@ class XNES:
     """Exponential NES with rank-based utilities and the default learning rates of Glasmachers et al.:
     eta_mu = 1, eta_sigma = eta_B = 3 (3 + ln n) / (5 n sqrt n)."""
 
+    @checked(start=WARM_START, seed=SEED, population_size=optional(integer(2)))
     def __init__(self, start: WarmStart, *, seed: int, population_size: int | None = None) -> None:
         n = start.mean.size
         self.population_size = population_size or default_population_size(n)
@@ -190,6 +210,7 @@ class XNES:
         self._samples = self._rng.standard_normal((self.population_size, self._mean.size))
         return self._space.to_theta(self._mean + self._sigma * self._samples @ self._shape.T)
 
+    @checked(rewards=shaped(ndim=1))
     def tell(self, thetas: np.ndarray, rewards: np.ndarray) -> None:
         samples = self._samples
         if samples is None or len(rewards) != len(samples):
@@ -260,6 +281,14 @@ Objective = Callable[[np.ndarray, np.ndarray], np.ndarray]
 """rewards (N,) of thetas (N, n) for the optimisers' indices (N,): one batch for all of them."""
 
 
+@checked(
+    objective=CALLABLE,
+    optimizers=items(instance(Optimizer, "an optimizer (learning.make_optimizer)"), "a list of optimizers"),
+    budget=COUNT,
+    evaluate_start=instance(bool, "True or False"),
+    target_reward=optional(number),
+    progress=optional(CALLABLE),
+)
 def policy_search(
     objective: Objective,
     optimizers: Sequence[Optimizer],
@@ -277,8 +306,6 @@ def policy_search(
     early when a rollout reaches ``target_reward`` or its own stopping rule fires; ``progress`` is called with
     the number of rollouts of each batch.
     """
-    if budget < 1:
-        raise InputError(f"budget must be at least one rollout, got {budget}")
     results = [SearchResult(opt.mean.copy(), -math.inf) for opt in optimizers]
     if evaluate_start:
         means = np.array([opt.mean for opt in optimizers])

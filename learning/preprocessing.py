@@ -16,11 +16,13 @@ import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 
-from besman.learning.demonstration import Demonstration, DemonstrationError
+from besman.learning.demonstration import DEMONSTRATION, Demonstration, DemonstrationError
 from besman.skills.errors import InputError
 from besman.skills.quaternion import from_matrix, make_continuous
+from besman.skills.validation import checked, instance, numeric, positive, shaped, text
 
 
+@checked(measurement_noise=positive, jerk_noise=positive, max_gap=positive)
 @dataclass(frozen=True)
 class SmoothingConfig:
     """Noise model of the filter and the longest gap it may bridge.
@@ -59,6 +61,11 @@ _SMOOTHED: weakref.WeakKeyDictionary[Demonstration, dict[tuple[str, SmoothingCon
 )
 
 
+@checked(
+    demo=DEMONSTRATION,
+    marker=text("a marker name"),
+    config=instance(SmoothingConfig, "a SmoothingConfig"),
+)
 def smooth(demo: Demonstration, marker: str, config: SmoothingConfig = SmoothingConfig()) -> SmoothedChannel:
     """Kalman filter + RTS smoother of one marker (see the module documentation); computed once per
     recording, marker and config."""
@@ -96,16 +103,26 @@ def _smooth(demo: Demonstration, marker: str, config: SmoothingConfig) -> Smooth
     return SmoothedChannel(*result)
 
 
+@checked(times=shaped(ndim=1), values=numeric, rate=positive)
 def resample(times: np.ndarray, values: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
-    """Values (T, ...) linearly interpolated at ``rate`` Hz over the same time span."""
-    if not rate > 0:
-        raise InputError(f"rate must be positive, got {rate!r}")
+    """Values (T, ...) linearly interpolated at ``rate`` Hz over the same time span (values may hold NaN)."""
+    if values.ndim == 0 or len(values) != len(times) or len(times) == 0:
+        raise InputError(
+            f"learning.resample: values need one row per time ({len(times)}), got shape {values.shape}"
+        )
     new_times = np.arange(times[0], times[-1] + 1e-9, 1.0 / rate)
     flat = values.reshape(len(times), -1)
     resampled = np.column_stack([np.interp(new_times, times, flat[:, i]) for i in range(flat.shape[1])])
     return new_times, resampled.reshape(len(new_times), *values.shape[1:])
 
 
+@checked(
+    demo=DEMONSTRATION,
+    top=text("a marker name"),
+    left=text("a marker name"),
+    right=text("a marker name"),
+    config=instance(SmoothingConfig, "a SmoothingConfig"),
+)
 def hand_pose(
     demo: Demonstration,
     top: str = "Hand top",

@@ -35,9 +35,10 @@ from besman.learning.changepoints import (
     samples,
 )
 from besman.learning.contact import GRIP, ContactMarkers, contact_signals, joint_models
-from besman.learning.demonstration import Demonstration, DemonstrationError
+from besman.learning.demonstration import DEMONSTRATION, Demonstration, DemonstrationError
 from besman.learning.preprocessing import SmoothingConfig, resample, smooth
 from besman.skills.errors import InputError
+from besman.skills.validation import CALLABLE, SEED, checked, instance, optional, positive, text
 
 EXACT_UP_TO = 1200  # samples (a minute at 20 Hz): exact inference's evidences take Q x 12 MB (16 models:
 # 190 MB with the grip); beyond, pruned inference is linear in T
@@ -98,6 +99,16 @@ class Segmentation:
 SIGNALS = ("velocity", "speed")
 
 
+@checked(
+    demo=DEMONSTRATION,
+    marker=text("a marker name"),
+    rate=positive,
+    models=optional(instance(tuple, "a tuple of SegmentModels")),
+    smoothing=optional(instance(SmoothingConfig, "a SmoothingConfig")),
+    posterior=instance(bool, "True or False"),
+    seed=SEED,
+    progress=optional(CALLABLE),
+)
 def segment(
     demo: Demonstration,
     *,

@@ -41,7 +41,7 @@ Distance to target is sqrt(-reward): the landing's distance for a valid throw; a
 together: mean +- SEM, median and failed throws. Every method's cost is its total rollouts (training and
 kernel choice included) for the field plot. Every stage is written to ``DIR/work`` when it completes
 (atomically), so an interrupted run resumes where it stopped; a DIR that holds a run with another
-configuration is refused. The paper's claims and the goals are judged in
+configuration, or files that no run of it wrote, is refused. The paper's claims and the goals are judged in
 :mod:`besman.learning.throwing_claims`.
 """
 
@@ -65,7 +65,14 @@ from besman.sim.throwing import FAILURE_REWARD, ThrowingConfig, ThrowingTask
 from besman.skills import MovementPrimitive, zero_shot
 from besman.skills.errors import InputError
 from besman.skills.pool import SkillTemplatePool
-from besman.skills.storage import npz_bytes, read_json, read_npz, remove_temporaries, write_atomically
+from besman.skills.storage import (
+    holds_files,
+    npz_bytes,
+    read_json,
+    read_npz,
+    remove_temporaries,
+    write_atomically,
+)
 from besman.skills.template import SkillTemplate
 from besman.skills.template_models import SharedKernel
 from besman.skills.writer_lock import WriterLock
@@ -78,6 +85,8 @@ VARIANTS = ("bootstrapped", "goal_only")
 SPREAD_METHODS = ("tabula_rasa", "nearest_start")
 FAILED_DISTANCE = math.sqrt(-FAILURE_REWARD)  # 31.6 m: a failed throw is at least this far off
 BATCH = 256  # rollouts per evaluate() call: the rollout's state buffers grow with the batch
+# The folders in DIR that a run writes (besides DIR itself), where a killed run leaves temporaries.
+OUTPUT_FOLDERS = ("work", "pool")
 VALIDATION_SEED = 20_141_000  # the spreads' validation targets: their own seed, never a grid
 
 
@@ -169,16 +178,33 @@ class Experiment:
     def _claim_directory(self) -> None:
         # The directory's one writer from here to the end of run() (or this process).
         self._lock = WriterLock(self.directory, "--out").acquire()
-        remove_temporaries(self.directory)  # a run killed mid-write left them
+        try:
+            self._check_directory()
+        except BaseException:
+            self._lock.release()  # refused: no lock file stays beside it
+            raise
+
+    def _check_directory(self) -> None:
+        """Refuses a file, a run of another configuration and a folder of someone else's; in a run's folder
+        (its configuration the same, or nothing in it but besman's temporaries), removes the temporaries
+        that a killed run left."""
         stored = self.directory / "work" / "config.json"
         config = json.loads(json.dumps({"schema_version": SCHEMA_VERSION, **asdict(self.config)}))
+        if self.directory.exists() and not self.directory.is_dir():
+            raise InputError(f"{self.directory}: the output is a file, not a folder")
         if stored.exists():
             if read_json(stored) != config:
                 raise InputError(
                     f"{self.directory} holds a run with another configuration ({stored}); use another --out"
                 )
+        elif holds_files(self.directory):
+            raise InputError(
+                f"{self.directory}: the folder is not empty and not a run of this experiment; "
+                "use another --out"
+            )
         else:
             write_atomically(stored, (json.dumps(config, indent=2) + "\n").encode())
+        remove_temporaries(self.directory, OUTPUT_FOLDERS)
 
     def _stage(self, name: str, compute: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         """A stage's arrays: read from DIR/work if a previous run finished it, else computed and written;

@@ -31,7 +31,9 @@ import numpy as np
 
 from besman.robots import menagerie, packages
 from besman.robots.description import DescriptionError, ModelSource, RobotDescription
+from besman.robots.model_files import check_model_files
 from besman.skills.errors import InputError
+from besman.skills.validation import checked, instance
 
 CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}
 
@@ -42,10 +44,23 @@ def model_path(source: ModelSource, folder: Path, where: str) -> Path:
         return menagerie.find(source.file, where)
     if source.package is not None:
         return packages.find(source.package, source.file, where)
-    return folder / source.file
+    return _inside(folder, source.file, where)
+
+
+def _inside(folder: Path, file: str, where: str) -> Path:
+    """``folder / file``, refused if it resolves (symbolic links followed) outside ``folder``: a description
+    names its own model, not any file of the machine."""
+    path = folder / file
+    if not path.resolve().is_relative_to(folder.resolve()):
+        raise DescriptionError(
+            f"{where}: {file!r} lies outside the robot's folder {folder} (it resolves to {path.resolve()}); "
+            "name a file inside it, or a Menagerie or package model"
+        )
+    return path
 
 
 def _spec(path: Path) -> mujoco.MjSpec:
+    check_model_files(path)  # MuJoCo opens them by path, with no check of its own
     try:
         return mujoco.MjSpec.from_file(str(path))
     except ValueError as error:
@@ -105,6 +120,7 @@ def add_stage(spec: mujoco.MjSpec) -> None:
     )
 
 
+@checked(description=instance(RobotDescription, "a RobotDescription (robots.describe)"))
 def build_spec(description: RobotDescription) -> mujoco.MjSpec:
     """The robot's assembled, uncompiled model (see the module documentation)."""
     where = str(description.file)

@@ -422,7 +422,7 @@ def _tabletop(value: Any, where: str) -> TabletopLayout:
 def read_description(path: Path) -> RobotDescription:
     """Reads and validates a ``description.json``; errors name the file and the offending field."""
     path = Path(path)
-    raw = read_json(path, DescriptionError)
+    raw = read_json(path, DescriptionError, what="robot description")
     where = str(path)
     check_schema_version(raw, (1, SCHEMA_VERSION), where, DescriptionError)
 

@@ -33,6 +33,7 @@ from besman.robots.kinematics import site_id
 from besman.robots.robot import Robot
 from besman.skills import quaternion
 from besman.skills.errors import InputError
+from besman.skills.validation import COUNT, SEED, checked, instance, integer, numeric, optional, text
 
 MAX_JOINT_STEP = 0.3  # rad or m per iteration (trust region)
 STALL = 1e-9  # an iterate that moves no joint by more than this has stalled
@@ -181,12 +182,12 @@ def _attempt(
 
 
 def _target(position, orientation) -> tuple[np.ndarray, np.ndarray | None]:
-    position = np.asarray(position, dtype=float)
+    position = numeric("robots.solve_ik: position", position)
     if position.shape != (3,) or not np.all(np.isfinite(position)):
         raise InputError(f"target position must be 3 finite numbers, got {position!r}")
     if orientation is None:
         return position, None
-    orientation = np.asarray(orientation, dtype=float)
+    orientation = numeric("robots.solve_ik: quaternion", orientation)
     if orientation.shape != (4,) or not np.all(np.isfinite(orientation)):
         raise InputError(f"target quaternion must be 4 finite numbers (w, x, y, z), got {orientation!r}")
     return position, quaternion.normalized("target quaternion", orientation)
@@ -215,6 +216,15 @@ def _joints(robot: Robot, groups: tuple[str, ...]) -> tuple[np.ndarray, ...]:
     return arrays
 
 
+@checked(
+    robot=instance(Robot, "a Robot (robots.load)"),
+    group=instance(str | list | tuple, "a joint group's name or a list of them"),
+    site=optional(text("a site name")),
+    max_iterations=COUNT,
+    restarts=integer(0),
+    seed=SEED,
+    data=optional(instance(mujoco.MjData, "an MjData of the robot's model")),
+)
 def solve_ik(
     robot: Robot,
     group: str | Sequence[str],
@@ -288,15 +298,6 @@ def solve_ik(
     ):
         if not (isinstance(value, int | float) and 0 < value < math.inf):
             raise InputError(f"{name} must be a positive number, got {value!r}")
-    for name, value in (("max_iterations", max_iterations), ("restarts", restarts)):
-        if (
-            not isinstance(value, int)
-            or isinstance(value, bool)
-            or value < (1 if name == "max_iterations" else 0)
-        ):
-            raise InputError(
-                f"{name} must be an integer >= {1 if name == 'max_iterations' else 0}, got {value!r}"
-            )
     tolerances = Tolerances(position_tolerance, orientation_tolerance)
 
     start = np.clip(data.qpos[problem.qpos_indices].copy(), problem.lower, problem.upper)

@@ -13,6 +13,7 @@ import numpy as np
 from besman.robots.robot import Robot
 from besman.skills.errors import InputError
 from besman.skills.quaternion import from_matrix
+from besman.skills.validation import checked, instance, optional, text
 
 QUATERNION_ORDER = "wxyz"
 
@@ -47,6 +48,11 @@ def site_pose(model: mujoco.MjModel, data: mujoco.MjData, site: str | int) -> Po
     return Pose(data.site_xpos[index].copy(), from_matrix(data.site_xmat[index].reshape(3, 3)))
 
 
+@checked(
+    robot=instance(Robot, "a Robot (robots.load)"),
+    site=text("a site name"),
+    data=optional(instance(mujoco.MjData, "an MjData of the robot's model")),
+)
 def forward_kinematics(robot: Robot, qpos: np.ndarray, site: str, data: mujoco.MjData | None = None) -> Pose:
     """The world pose of ``site`` for a full configuration ``qpos`` (length ``model.nq``), computed in the
     scratch ``data`` if given (its state is overwritten), else in a new one."""

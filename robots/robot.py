@@ -10,6 +10,7 @@ moves, where its tool is and how its gripper works.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +23,10 @@ from besman.robots.assembly import build_spec
 from besman.robots.description import DescriptionError, RobotDescription, read_description
 from besman.robots.gripper import Gripper
 from besman.skills.errors import InputError, UnknownNameError
+from besman.skills.validation import CALLABLE, checked, instance, optional, text
+
+# The check of an argument that names a robot: a shipped robot's name or a robot folder.
+ROBOT = instance((str, os.PathLike), "a robot name or folder (str or os.PathLike)")
 
 ROBOTS_DIR = Path(__file__).resolve().parent
 DESCRIPTION_FILE = "description.json"
@@ -125,6 +130,7 @@ class Robot:
         self.reset(data, keyframe)
         return data
 
+    @checked(data=instance(mujoco.MjData, "an MjData"), keyframe=optional(text("a keyframe name")))
     def reset(self, data: mujoco.MjData, keyframe: str | None = None) -> None:
         """Resets ``data`` to a keyframe (state and ctrl) and runs ``mj_forward``."""
         name = keyframe or self.keyframe
@@ -234,6 +240,7 @@ def available() -> list[str]:
     return sorted(path.parent.name for path in ROBOTS_DIR.glob(f"*/{DESCRIPTION_FILE}"))
 
 
+@checked(name=ROBOT)
 def load(name: str) -> Robot:
     """Loads a shipped robot by name (see :func:`available`), or a robot folder given as a path.
 
@@ -246,16 +253,18 @@ def load(name: str) -> Robot:
     return Robot(description, compile_spec(build_spec(description), description))
 
 
+@checked(name=ROBOT)
 def describe(name: str) -> RobotDescription:
     """The description of a shipped robot (by name) or of a robot folder (a path), read and checked."""
     folder = Path(name)
-    if not (folder / DESCRIPTION_FILE).is_file():
+    if not (folder / DESCRIPTION_FILE).exists():  # a special file there is refused by name when read
         if name not in available():
             raise UnknownNameError(f"unknown robot {name!r}; available: {', '.join(available())}")
         folder = ROBOTS_DIR / name
     return read_description(folder / DESCRIPTION_FILE)
 
 
+@checked(robot=optional(ROBOT), default=ROBOT, fits=CALLABLE)
 def choose(robot: str | None, default: str, fits: Callable[[RobotDescription], bool], what: str) -> str:
     """``robot`` (None: ``default``) if ``fits`` its description; otherwise an error, before any work, saying
     that ``what`` (a task, a demo) does not run on it and naming the robots it runs on (an unknown robot is
@@ -267,6 +276,10 @@ def choose(robot: str | None, default: str, fits: Callable[[RobotDescription], b
     return robot
 
 
+@checked(
+    spec=instance(mujoco.MjSpec, "an MjSpec (robots.build_spec)"),
+    description=instance(RobotDescription, "a RobotDescription (robots.describe)"),
+)
 def compile_spec(spec: mujoco.MjSpec, description: RobotDescription) -> mujoco.MjModel:
     """Compiles an assembled model (with whatever a world added); errors name the description."""
     try:

@@ -12,7 +12,7 @@
   (:mod:`besman.sim.evaluation`: local cores or Ray); :mod:`besman.sim.blocks` - pick and place's building
   blocks (reach, carry, return) simulated one at a time, for refining learned primitives.
 - :mod:`besman.sim.viewer` - the browser viewer (viser, mjviser): the world posed from the simulation and a
-  tree panel.
+  tree panel; :mod:`besman.sim.serving` - who may open it (its own page only, this machine by default).
 """
 
 from besman.sim.arm import Arm

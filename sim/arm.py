@@ -17,6 +17,7 @@ import numpy as np
 
 import besman.robots as robots
 from besman.sim.world import World
+from besman.skills.validation import checked, finite_array, instance, items, optional, text
 
 
 class Arm:
@@ -33,6 +34,11 @@ class Arm:
         gripper: the arm's gripper (:class:`~besman.robots.Gripper`), None without one.
     """
 
+    @checked(
+        world=instance(World, "a World (sim.tabletop_world)"),
+        arm=optional(text("an arm name")),
+        groups=optional(items(text("a joint group name"))),
+    )
     def __init__(self, world: World, arm: str | None = None, groups: Sequence[str] | None = None) -> None:
         self.world = world
         robot = world.robot
@@ -68,7 +74,7 @@ class Arm:
     def full_qpos(self, joint_positions: np.ndarray) -> np.ndarray:
         """The world's current qpos with the arm's joints set to ``joint_positions``."""
         qpos = self.world.data.qpos.copy()
-        qpos[self.qpos_indices] = joint_positions
+        qpos[self.qpos_indices] = self._configuration(joint_positions)
         return qpos
 
     def measured(self) -> np.ndarray:
@@ -76,6 +82,10 @@ class Arm:
         return self.world.data.qpos[self.qpos_indices]
 
     # -- forward kinematics --------------------------------------------------------------------------------
+
+    def _configuration(self, joint_positions) -> np.ndarray:
+        """One configuration of the arm's joints, refused by name (wrong shape, NaN) before any work."""
+        return finite_array("joint_positions", joint_positions, shape=(self.dofs,))
 
     def _pose_scratch(self, joint_positions: np.ndarray) -> mujoco.MjData:
         scratch = self._scratch
@@ -86,7 +96,7 @@ class Arm:
 
     def site_pose(self, joint_positions: np.ndarray) -> robots.Pose:
         """The world pose of the site at ``joint_positions``."""
-        scratch = self._pose_scratch(joint_positions)
+        scratch = self._pose_scratch(self._configuration(joint_positions))
         return robots.site_pose(self.world.model, scratch, self._site_id)
 
     def site_path(self, joint_positions: np.ndarray) -> np.ndarray:
@@ -126,7 +136,7 @@ class Arm:
     def collisions(self, joint_positions: np.ndarray, allowed: Sequence[str] = ()) -> list[str]:
         """Contacts the robot would have with the arm at ``joint_positions`` and everything else as it is
         now: "body1/body2" for each pair, except pairs with a body named in ``allowed``."""
-        model, scratch = self.world.model, self._pose_scratch(joint_positions)
+        model, scratch = self.world.model, self._pose_scratch(self._configuration(joint_positions))
         mujoco.mj_collision(model, scratch)
         contacts = scratch.contact
         bodies = model.geom_bodyid[contacts.geom]  # (ncon, 2)

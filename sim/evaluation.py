@@ -11,16 +11,23 @@ described by a picklable configuration whose ``build()`` makes the task anywhere
   GIL in threads, run their episodes in a pool of local worker processes (:func:`evaluate_in_processes`).
 - ``backend="ray"`` (extra ``distributed``) splits the batch into chunks and evaluates each on a Ray worker,
   which builds the task from its configuration once per worker process (:func:`evaluate_on_ray`).
-  Connect to a cluster with ``ray.init(address=...)`` first; without it a local Ray instance is started.
+  Without a running Ray, it starts a local instance that listens on 127.0.0.1 only, or joins the cluster
+  that ``RAY_ADDRESS`` names; ``ray.init(address=...)`` before the first batch connects to a cluster too.
+  A cluster reachable from the network gets one warning line: Ray runs code for anyone who reaches it
+  unless its token authentication is on (CVE-2023-48022).
 
 Rollouts are independent and deterministic, so every backend gives identical results.
 """
 
 from __future__ import annotations
 
+import importlib
+import ipaddress
+import logging
 import math
 import multiprocessing
 import os
+import signal
 import subprocess
 import threading
 import time
@@ -38,6 +45,12 @@ from besman.skills.validation import finite_array
 
 BACKENDS = ("threads", "ray")
 PARENT_CHECK_SECONDS = 0.5  # how often a worker process checks that its parent lives
+LOOPBACK = "127.0.0.1"
+# Ray's switch (read when ``ray`` is imported) that keeps a loopback node address on Linux, where Ray
+# otherwise replaces it by the machine's network address and listens on every interface.
+RAY_ONE_MACHINE = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -166,11 +179,85 @@ _reapers: list[subprocess.Popen] = []  # the reaper of the Ray this process star
 
 
 def _start_local_ray(ray) -> None:
-    """Starts a local Ray instance that ends with this process, however it ends (:mod:`besman.sim.reaper`)."""
+    """Starts a local Ray instance that listens on 127.0.0.1 only and ends with this process, however it
+    ends (:mod:`besman.sim.reaper`), or joins the cluster that ``RAY_ADDRESS`` names (:func:`_init_ray`)."""
     mark = f"{os.getpid()}-{time.time_ns()}"
     _reapers.append(reaper.start(mark))
     os.environ[reaper.OWNER] = mark  # inherited by every process Ray starts
-    ray.init(include_dashboard=False, log_to_driver=False)
+    sigterm = signal.getsignal(signal.SIGTERM)
+    _init_ray(ray)
+    if sigterm is not None and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, sigterm)  # besman's (handled as Ctrl-C), not Ray's sys.exit
+
+
+def _init_ray(ray) -> None:
+    """Joins the cluster that ``RAY_ADDRESS`` names, or else starts a Ray instance that only this machine
+    can reach: every service of it (GCS, raylet with its object and node managers, workers, dashboard and
+    agents) listens on 127.0.0.1, as Ray does when its node address is loopback. On Linux Ray replaces a
+    loopback node address unless ``RAY_ONE_MACHINE`` is "0": set for the processes Ray starts and in Ray's
+    constants for this one (which may have imported ``ray`` before), both restored once Ray runs. A Ray that
+    came up listening elsewhere all the same (another Ray version) is shut down: an error, not a risk."""
+    if os.environ.get("RAY_ADDRESS", "local") != "local":
+        ray.init(log_to_driver=False)
+        return
+    constants = importlib.import_module("ray._private.ray_constants")
+    saved = os.environ.get(RAY_ONE_MACHINE), constants.ENABLE_RAY_CLUSTER
+    os.environ[RAY_ONE_MACHINE], constants.ENABLE_RAY_CLUSTER = "0", False
+    try:
+        ray.init(
+            address="local",
+            _node_ip_address=LOOPBACK,
+            include_dashboard=False,
+            dashboard_host=LOOPBACK,
+            log_to_driver=False,
+        )
+    finally:
+        constants.ENABLE_RAY_CLUSTER = saved[1]
+        if saved[0] is None:
+            os.environ.pop(RAY_ONE_MACHINE, None)
+        else:
+            os.environ[RAY_ONE_MACHINE] = saved[0]
+    reachable = [host for host in _ray_hosts(ray) if not _is_loopback(host)]
+    if reachable:
+        ray.shutdown()
+        raise RuntimeError(
+            f"Ray {ray.__version__} started on {reachable[0]}, not on {LOOPBACK} only: stopped it"
+        )
+
+
+def _ray_hosts(ray) -> list[str]:
+    """The hosts of the Ray this process runs on: its control service's (GCS) and this node's."""
+    try:
+        gcs = ray.get_runtime_context().gcs_address
+        return [gcs.rsplit(":", 1)[0].strip("[]"), ray.util.get_node_ip_address()]
+    except Exception:  # a Ray client connection (ray://) tells neither
+        return []
+
+
+def _is_loopback(host: str) -> bool:
+    try:
+        address = ipaddress.ip_address(host)
+    except ValueError:
+        return host == "localhost"
+    mapped = getattr(address, "ipv4_mapped", None)
+    return address.is_loopback or (mapped is not None and mapped.is_loopback)
+
+
+_warned: set[str] = set()  # the reachable Ray hosts warned about
+
+
+def _warn_if_reachable(ray) -> None:
+    """One warning line for a Ray this process runs on whose control service or node listens beyond this
+    machine (a cluster the user connected to, or a Ray started before besman by ``ray.init()``)."""
+    reachable = [host for host in _ray_hosts(ray) if not _is_loopback(host)]
+    if reachable and reachable[0] not in _warned:
+        _warned.add(reachable[0])
+        log.warning(
+            "besman: warning: Ray at %s is reachable from the network; a Ray cluster runs code for anyone "
+            "who reaches it unless its token authentication is on (CVE-2023-48022): keep it on a trusted "
+            "network",
+            reachable[0],
+        )
 
 
 def evaluate_on_ray(
@@ -183,6 +270,7 @@ def evaluate_on_ray(
         raise InputError("backend='ray' needs Ray: pip install 'besman[distributed]'") from None
     if not ray.is_initialized():
         _start_local_ray(ray)
+    _warn_if_reachable(ray)
     workers = max(1, int(ray.available_resources().get("CPU", 1)))
     parts = (
         _chunks(len(thetas), workers)

@@ -27,11 +27,36 @@ from besman.sim.references import ReferenceSettings
 from besman.sim.streaming import WORKING, JerkLimitedStream
 from besman.sim.world import World
 from besman.skills.errors import InputError, UnknownNameError
+from besman.skills.validation import (
+    CALLABLE,
+    COUNT,
+    checked,
+    instance,
+    integer,
+    items,
+    non_negative,
+    optional,
+    positive,
+    text,
+)
 
 # The longest chunk :meth:`Executor.run` runs (0.1 s at 500 Hz): what a failure can run on past its cycle.
 RUN_CHUNK = 50
 
 
+@checked(
+    control_period=positive,
+    arrival_tolerance=positive,
+    lag_tolerance=positive,
+    following_tolerance=positive,
+    ik_position_tolerance=positive,
+    ik_orientation_tolerance=positive,
+    ik_knot_period=positive,
+    settle_cycles=integer(0),
+    range_tolerance=non_negative,
+    lookahead_cycles=COUNT,
+    arrival_timeout=positive,
+)
 @dataclass(frozen=True)
 class ExecutorConfig:
     """Control rate and tolerances.
@@ -69,6 +94,12 @@ class ExecutorConfig:
 class Executor:
     """Streams Ruckig-smoothed commands to a world's robot; see the module documentation."""
 
+    @checked(
+        world=instance(World, "a World (sim.tabletop_world)"),
+        arms=optional(instance(str | list | tuple, "an arm's name or a list of them")),
+        config=instance(ExecutorConfig, "an ExecutorConfig"),
+        groups=optional(items(text("a joint group name"))),
+    )
     def __init__(
         self,
         world: World,
@@ -181,6 +212,7 @@ class Executor:
 
     # -- motions -------------------------------------------------------------------------------------------
 
+    @checked(motion=instance(Motion, "a Motion (sim.motions)"))
     def start(self, motion: Motion) -> Motion:
         """Makes ``motion`` the current one (the previous one is replaced where it stands); a motion that
         cannot start raises (e.g. an :class:`~besman.skills.errors.InputError` for an unreachable pose)."""
@@ -192,6 +224,7 @@ class Executor:
         """Pre-empts the current motion with a smooth stop."""
         return self.start(Stop("stop"))
 
+    @checked(motion=instance(Motion, "a Motion (sim.motions)"), timeout=positive, observe=optional(CALLABLE))
     def run(self, motion: Motion, timeout: float = 30.0, observe: Callable[[], None] | None = None) -> Motion:
         """Runs ``motion`` to its end (or ``timeout`` seconds of simulated time) and returns it; ``observe``
         is called after every control cycle.
@@ -220,6 +253,7 @@ class Executor:
             self.advance(min(RUN_CHUNK, left, *needed))
         return motion
 
+    @checked(cycles=integer(0))
     def advance(self, cycles: int) -> MotionStatus:
         """Runs ``cycles`` control cycles (e.g. those between two ticks of a behaviour tree) as one chunk
         and returns the motion's status; the other arms (:meth:`arm_executor`) run the same cycles in

@@ -33,6 +33,7 @@ import numpy as np
 
 import besman.robots as robots
 from besman.robots.description import TabletopLayout
+from besman.robots.robot import ROBOT
 from besman.sim.evaluation import BatchedTask, Evaluation
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.manipulation import (
@@ -50,6 +51,7 @@ from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionSta
 from besman.sim.world import DEFAULT_BOX, GraspableObject, World, tabletop_world
 from besman.skills.errors import InputError
 from besman.skills.tasks import TaskBounds
+from besman.skills.validation import checked, instance
 
 
 def pick_place_bounds(robot: str | TabletopLayout = "aila") -> TaskBounds:
@@ -86,6 +88,7 @@ class PickPlaceDetail:
     limit_violations: tuple[str, ...] = ()  # commanded joint states beyond a limit (from the command log)
 
 
+@checked(item=instance(GraspableObject, "a GraspableObject"), robot=ROBOT)
 @dataclass(frozen=True)
 class PickPlaceConfig:
     """Everything that defines the task; ``build()`` makes it (also on Ray workers)."""
@@ -102,6 +105,7 @@ class PickPlaceTask(BatchedTask):
     reward = -placement error (m) on success, else -1; details are :class:`PickPlaceDetail`; the episodes
     run in worker processes (the control loop is Python: threads would wait on each other)."""
 
+    @checked(config=instance(PickPlaceConfig, "a PickPlaceConfig"))
     def __init__(self, config: PickPlaceConfig = PickPlaceConfig()) -> None:
         self.config = config
         self.bounds = pick_place_bounds(config.robot)

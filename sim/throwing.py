@@ -33,7 +33,7 @@ persistent thread pool with one MjData per thread, or on Ray (see :mod:`besman.s
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import mujoco
@@ -45,7 +45,16 @@ from besman.sim.world import throwing_world
 from besman.skills import DMP, DMPSettings, quaternion
 from besman.skills.errors import InputError
 from besman.skills.tasks import TaskBounds
-from besman.skills.validation import finite_array
+from besman.skills.validation import (
+    checked,
+    finite_array,
+    instance,
+    integer,
+    number,
+    optional,
+    positive,
+    text,
+)
 
 FAILURE_REWARD = -1000.0
 # Failures grow with their constraint violation up to this cap; a broken candidate (NaN or inf in theta, or a
@@ -86,6 +95,13 @@ VARIANTS = {
 }
 
 
+@checked(
+    variant=text("a variant name"),
+    execution_time=optional(positive),
+    duration=positive,
+    n_weights=integer(2),
+    release_threshold=number,
+)
 @dataclass(frozen=True)
 class ThrowingConfig:
     """Everything that defines a throwing task; ``build()`` makes the task (also on Ray workers)."""
@@ -115,8 +131,9 @@ class ThrowingTask(BatchedTask):
 
     in_processes: ClassVar[bool] = False  # open loop: MuJoCo's rollouts on its own threads, here
 
+    @checked(config=optional(instance(ThrowingConfig, "a ThrowingConfig")))
     def __init__(self, config: ThrowingConfig | None = None, **overrides) -> None:
-        config = config or ThrowingConfig(**overrides)
+        config = replace(config or ThrowingConfig(), **overrides)  # overrides change a given config too
         if config.variant not in VARIANTS:
             raise InputError(f"variant must be one of {sorted(VARIANTS)}, got {config.variant!r}")
         self.variant = VARIANTS[config.variant]

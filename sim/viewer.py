@@ -1,8 +1,10 @@
 """The browser viewer: a world mirrored in viser, posed from the simulation, with a behaviour-tree panel.
 
-A :class:`Viewer` serves a web page (viser; 127.0.0.1 unless told otherwise, a free port by default). The
-world's MuJoCo model is mirrored by mjviser (geoms converted once, moving bodies as batched meshes, poses
-pushed inside one ``server.atomic()`` per frame), with contacts and frames as toggles in its scene panel.
+A :class:`Viewer` serves a web page (viser; 127.0.0.1 unless told otherwise, a free port by default) and
+answers websockets only from that page (:mod:`besman.sim.serving`; a host it cannot serve on is an error,
+one reachable from the network a warning: :mod:`besman.hosts`). The world's MuJoCo model is mirrored by
+mjviser (geoms converted once, moving bodies as batched meshes, poses pushed inside one ``server.atomic()``
+per frame), with contacts and frames as toggles in its scene panel.
 :meth:`Viewer.show` poses the scene from the simulation; during a run it is called after every tick and
 sends a frame whenever waiting for the next tick would leave the browser more than ``MAX_FRAME_GAP`` without
 one (at least 30 frames per second of wall time, whatever the run's real-time factor), and always for the
@@ -16,14 +18,17 @@ from __future__ import annotations
 
 import contextlib
 import html
+import io
+import math
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 import mujoco
-import viser
 from mjviser import ViserMujocoScene
 
+from besman import hosts
+from besman.sim import serving
 from besman.sim.arm import Arm
 from besman.sim.overlays import Overlays
 from besman.skills.errors import InputError
@@ -48,19 +53,42 @@ NO_NODE = "(choose a node)"
 STATUS_COLOURS = {"RUNNING": "#1f77b4", "SUCCESS": "#2ca02c", "FAILURE": "#d62728", "INVALID": "#999999"}
 
 
+def within(slider) -> float:
+    """A viser slider's value, kept within its range (a client may send any number)."""
+    value = float(slider.value)
+    return min(max(value, slider.min), slider.max) if math.isfinite(value) else slider.min
+
+
 def headless_chromium(playwright, executable: str = "/usr/bin/chromium"):
     """Debian's Chromium, headless, launched through Playwright (a ``sync_playwright()`` context)."""
     return playwright.chromium.launch(executable_path=executable, args=list(HEADLESS_CHROMIUM_FLAGS))
 
 
 class Viewer:
-    """A viser server showing ``model`` (posed by :meth:`show`) and a tree panel."""
+    """A viser server showing ``model`` (posed by :meth:`show`) and a tree panel, on ``host`` (this machine
+    by default; any other serves the network, with a warning) and ``port``; its websocket answers the served
+    page and ``allowed_origins`` (e.g. ``["https://viewer.example.org"]`` for a proxy in front of it)."""
 
     def __init__(
-        self, model: mujoco.MjModel, *, host: str = "127.0.0.1", port: int = 0, camera_distance: float = 4.0
+        self,
+        model: mujoco.MjModel,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        camera_distance: float = 4.0,
+        allowed_origins: Iterable[str] = (),
     ) -> None:
-        with contextlib.redirect_stdout(sys.stderr):  # viser's banner; stdout is for the command's output
-            self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        addresses = hosts.host_addresses(host)
+        with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: the commands print `url` instead
+            self.server = serving.start(host, port, allowed_origins)
+        self._url = hosts.url(host, self.server.get_port(), addresses)
+        if not hosts.loopback_only(addresses):
+            serving.log.warning(
+                "besman: warning: the viewer at %s (host %s) is reachable from the network, with no "
+                "authentication: anyone who reaches this machine can watch and drive it",
+                self._url,
+                host,
+            )
         self.scene = ViserMujocoScene(self.server, model, num_envs=1)
         # mjviser places every new browser's camera: from the front right, ``camera_distance`` m away
         self.scene.create_scene_gui(camera_distance=camera_distance)
@@ -78,8 +106,8 @@ class Viewer:
 
     @property
     def url(self) -> str:
-        host = self.server.get_host()
-        return f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.server.get_port()}"
+        """The address to open in a browser (for a wildcard host, this machine's first network address)."""
+        return self._url
 
     def show(self, data: mujoco.MjData, *, force: bool = False) -> bool:
         """Poses the scene from ``data`` if a frame is due (or ``force``); returns whether it did.
@@ -169,8 +197,9 @@ class Viewer:
         self._show_details()
 
     def _show_details(self) -> None:
-        chosen = self._inspect.value
-        self._set(self._details, self.describe(chosen) if chosen != NO_NODE and self.describe else "")
+        chosen = self._inspect.value  # a client may send any value, not only one of the options
+        shown = chosen != NO_NODE and chosen in self._inspect.options and self.describe
+        self._set(self._details, self.describe(chosen) if shown else "")
 
     @staticmethod
     def _set(handle, content: str) -> None:

@@ -23,7 +23,9 @@ import numpy as np
 import besman.robots as robots
 from besman.robots import Pose, Robot, RobotDescription
 from besman.robots.description import Board, TabletopLayout
+from besman.robots.robot import ROBOT
 from besman.skills.errors import InputError, UnknownNameError
+from besman.skills.validation import checked, instance, items, number, text
 
 
 @dataclass(frozen=True)
@@ -150,6 +152,7 @@ class World:
         self.data.qvel[dof : dof + 6] = 0.0
         mujoco.mj_forward(self.model, self.data)
 
+    @checked(name=text("an object name"), surface=text("a surface name"), x=number, y=number, yaw=number)
     def place_on(self, name: str, surface: str, x: float, y: float, yaw: float = 0.0) -> None:
         """Sets an object upright on a surface at (x, y)."""
         self._object_joint(name)  # an unknown object is named
@@ -189,6 +192,7 @@ def _add_surface(spec: mujoco.MjSpec, surface: Surface, base: float, rgba) -> No
     )
 
 
+@checked(objects=items(instance(GraspableObject, "a GraspableObject"), "a tuple of objects"), robot=ROBOT)
 def tabletop_world(objects: tuple[GraspableObject, ...] = (DEFAULT_BOX,), robot: str = "aila") -> World:
     """``robot`` at the origin facing +x, a table in front and a shelf board on the table's right side, where
     the robot's tabletop layout puts them.

@@ -13,8 +13,8 @@
   predictors a template is compared with; :mod:`besman.skills.pool` - the template pool, a directory of
   JSON + NPZ entries, a mapping of names to templates.
 - :mod:`besman.skills.quaternion` - unit quaternions (w, x, y, z); :mod:`besman.skills.validation` - argument
-  checks; :mod:`besman.skills.errors` - :class:`BesmanError`, the base of every error besman raises for bad
-  input.
+  checks, at every package's public functions; :mod:`besman.skills.errors` - :class:`BesmanError`, the base
+  of every error besman raises for bad input.
 
 Imports numpy, scipy and scikit-learn and no other besman package, so every other besman package may use it.
 """
@@ -30,6 +30,7 @@ _EXPORTS = {
     "Trajectory": "dmp",
     "DMPSettings": "dmp_core",
     "Primitive": "dmp_core",
+    "ArgumentTypeError": "errors",
     "BesmanError": "errors",
     "InputError": "errors",
     "ForcingBasis": "forcing",

@@ -32,7 +32,7 @@ from besman.skills import quaternion
 from besman.skills.dmp import DEFAULT_SETTINGS, DMP
 from besman.skills.dmp_core import DMPSettings, fit_weights
 from besman.skills.errors import InputError
-from besman.skills.validation import broadcast_vector, finite_array, increasing_times
+from besman.skills.validation import broadcast_vector, checked, finite_array, increasing_times
 
 STEP_FRACTION = 1.0 / 1000.0  # internal orientation step ~ tau / 1000 (output steps are split evenly)
 
@@ -52,6 +52,7 @@ class CartesianTrajectory:
     angular_accelerations: np.ndarray
 
 
+@checked()  # an unknown keyword is named, with the nearest known one
 class CartesianDMP:
     """Position and orientation DMP; quaternions are (w, x, y, z).
 

@@ -37,7 +37,7 @@ from besman.skills.dmp_core import DMPSettings, fit_weights
 from besman.skills.errors import InputError
 from besman.skills.forcing import ForcingBasis
 from besman.skills.transformation import TransformationSystem, moving_goal_basis
-from besman.skills.validation import broadcast_vector, finite_array, increasing_times, positive
+from besman.skills.validation import broadcast_vector, checked, finite_array, increasing_times, positive
 
 DEFAULT_SETTINGS = DMPSettings()
 MAX_STEPS = 20_000  # time steps of one generated trajectory (20 s at 1 ms)
@@ -96,6 +96,7 @@ def linear_map(settings: DMPSettings, tau: float, dt: float, run_time: float) ->
     return _LinearMap(times, tuple(p for p, _ in by_derivative), tuple(q for _, q in by_derivative))
 
 
+@checked()  # an unknown keyword is named, with the nearest known one
 class DMP:
     """An n-dimensional DMP with goal velocity (Muelling et al. 2013).
 

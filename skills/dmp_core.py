@@ -25,8 +25,10 @@ import numpy as np
 
 from besman.skills.forcing import ForcingBasis
 from besman.skills.transformation import TransformationSystem
+from besman.skills.validation import checked
 
 
+@checked()  # an unknown keyword is named, with the nearest known one
 @dataclass(frozen=True)
 class DMPSettings:
     """The shape of a DMP's forcing term and transformation system.

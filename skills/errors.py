@@ -13,6 +13,11 @@ class InputError(BesmanError):
     """An argument is malformed or out of range (the message names it)."""
 
 
+class ArgumentTypeError(InputError, TypeError):
+    """An argument of the wrong type (the message names the function, the argument, the value and the type
+    expected). Also a ``TypeError``, as Python's own would be."""
+
+
 class UnknownNameError(InputError, KeyError):
     """A name (of a joint group, arm, object, task...) that does not exist; the message lists the valid
     ones. Also a ``KeyError``, as a failed lookup by name."""

@@ -23,8 +23,10 @@ from functools import cached_property
 import numpy as np
 
 from besman.skills.errors import InputError
+from besman.skills.validation import checked
 
 
+@checked()  # an unknown keyword is named, with the nearest known one
 @dataclass(frozen=True)
 class ForcingBasis:
     """The phase and the N normalised basis functions of a forcing term, in normalised time s = t / tau."""

@@ -36,7 +36,9 @@ import numpy as np
 
 from besman.skills.errors import BesmanError, UnknownNameError
 from besman.skills.primitive import primitive_from_parts, primitive_parts
+from besman.skills.reading import read_bytes
 from besman.skills.storage import (
+    JSON_BYTES,
     check_schema_version,
     npz_bytes,
     read_json,
@@ -48,6 +50,7 @@ from besman.skills.storage import (
 from besman.skills.tasks import TaskBounds
 from besman.skills.template import EXPLORATIONS, SkillTemplate
 from besman.skills.template_models import SharedKernel, per_dimension_kernel
+from besman.skills.validation import PATH, checked, instance
 
 SCHEMA_VERSION = 2
 READABLE_VERSIONS = (1, 2)  # version 1: per-dimension templates, before the model was stored
@@ -63,6 +66,7 @@ class PoolError(BesmanError):
 class SkillTemplatePool(Mapping[str, SkillTemplate]):
     """The templates in ``directory`` (created on the first :meth:`add`)."""
 
+    @checked(directory=PATH)
     def __init__(self, directory: str | Path) -> None:
         self.directory = Path(directory)
         if self.directory.exists() and not self.directory.is_dir():
@@ -80,14 +84,14 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
         return sum(1 for _ in self)
 
     def __contains__(self, name: object) -> bool:
-        return isinstance(name, str) and NAME.fullmatch(name) is not None and self._manifest(name).is_file()
+        return isinstance(name, str) and NAME.fullmatch(name) is not None and self._manifest(name).exists()
 
     def __getitem__(self, name: str) -> SkillTemplate:
         if name not in self:
             raise self._unknown(name)
         with self._lock(shared=True):
             manifest = self._manifest(name)
-            text = manifest.read_bytes()
+            text = read_bytes(manifest, JSON_BYTES, what="pool manifest", error=PoolError)
             checksum = sha256(text)
             cached = self._cache.get(name)
             if cached is not None and cached[0] == checksum:
@@ -108,6 +112,7 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
 
     # -- writing -------------------------------------------------------------------------------------------
 
+    @checked(template=instance(SkillTemplate, "a SkillTemplate"), overwrite=instance(bool, "True or False"))
     def add(self, template: SkillTemplate, *, overwrite: bool = False) -> Path:
         """Stores ``template`` under its name; an existing entry is replaced only with ``overwrite``."""
         if NAME.fullmatch(template.name) is None:
@@ -196,7 +201,7 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
     def _read(self, name: str, manifest: Path) -> SkillTemplate:
         where = str(manifest)
         try:
-            document = read_json(manifest, PoolError)
+            document = read_json(manifest, PoolError, what="pool manifest")
             if document is None or document.get("kind") != KIND:
                 found = None if document is None else document.get("kind")
                 raise PoolError(f"{where}: not a skill template (kind {found!r}, expected {KIND!r})")
@@ -208,7 +213,9 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
             if npz_name != manifest.with_suffix(".npz").name:
                 raise PoolError(f"{where}: arrays.file must be {manifest.with_suffix('.npz').name!r}")
             arrays = read_npz(
-                manifest.with_suffix(".npz"), require_field(reference, "sha256", str, f"{where}: arrays")
+                manifest.with_suffix(".npz"),
+                require_field(reference, "sha256", str, f"{where}: arrays"),
+                what="pool entry's arrays",
             )
             tau = require_field(document, "tau", dict, where)
             ranges = [require_field(tau, name, list, f"{where}: tau") for name in tau]

@@ -34,6 +34,7 @@ from besman.skills.storage import (
     sha256,
     write_atomically,
 )
+from besman.skills.validation import PATH, checked, instance, optional, text
 
 SCHEMA_VERSION = 1
 SPACES = ("joint", "cartesian")
@@ -56,6 +57,13 @@ _ROTATION_ARRAYS = (
 )
 
 
+@checked(
+    name=text("a primitive name"),
+    robot=optional(text("a robot name")),
+    group=optional(text("a joint group name")),
+    frame=optional(text("a site or frame name")),
+    provenance=instance(dict, "a dict"),
+)
 @dataclass
 class MovementPrimitive:
     """A DMP together with its parameters and metadata.
@@ -96,6 +104,7 @@ class MovementPrimitive:
         """The DMP's parameter vector (``dmp.get_params()``)."""
         return self.dmp.get_params()
 
+    @checked(path=PATH)
     def save(self, path: str | Path) -> Path:
         """Writes ``path`` (``.json``) and its arrays beside it (``.npz``); returns the JSON path."""
         json_path = _json_path(path)
@@ -112,10 +121,11 @@ class MovementPrimitive:
         return json_path
 
     @classmethod
+    @checked(path=PATH)
     def load(cls, path: str | Path) -> MovementPrimitive:
         """Reads a primitive written by :meth:`save`; a ``ValueError`` names the file and the problem."""
         json_path = _json_path(path)
-        document = read_json(json_path)
+        document = read_json(json_path, what="primitive")
         where = str(json_path)
         check_schema_version(document, SCHEMA_VERSION, where)
         if document.get("kind") != "movement_primitive":
@@ -125,7 +135,9 @@ class MovementPrimitive:
         if Path(npz_name).name != npz_name:
             raise InputError(f"{where}: arrays.file must be a file name beside the JSON, got {npz_name!r}")
         arrays = read_npz(
-            json_path.parent / npz_name, require_field(reference, "sha256", str, f"{where}: arrays")
+            json_path.parent / npz_name,
+            require_field(reference, "sha256", str, f"{where}: arrays"),
+            what="primitive's arrays",
         )
         return primitive_from_parts(document, arrays, where)
 

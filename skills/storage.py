@@ -1,7 +1,10 @@
 """Safe persistence: whole files or nothing, JSON and NPZ only (never pickle), checksummed pairs.
 
 Writers go to a temporary file in the target folder and rename it into place, so a crash leaves either the
-old file or the new one, never half of one. Readers load NPZ with ``allow_pickle=False``, and check JSON
+old file or the new one, never half of one; a failed write removes its temporary and names the file. A
+temporary carries besman's mark (``.NAME.besman-XXXXXXXX.tmp``), and only marked ones are ever cleaned up
+(:func:`remove_temporaries`). Readers open only regular files of a bounded size (:data:`JSON_BYTES`,
+:data:`NPZ_BYTES`; :mod:`besman.skills.reading`), load NPZ with ``allow_pickle=False``, and check JSON
 documents field by field (:func:`check_schema_version`, :func:`require_field`, :func:`optional_field`) with
 messages that name the file and the field; every error is a :class:`~besman.skills.errors.BesmanError`.
 """
@@ -12,6 +15,8 @@ import hashlib
 import io
 import json
 import os
+import re
+import stat
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -19,6 +24,12 @@ from typing import Any
 import numpy as np
 
 from besman.skills.errors import BesmanError, InputError
+from besman.skills.reading import read_bytes
+
+# Bounds of the files besman writes and reads back (far above what it writes: a pool manifest or primitive
+# is about 20 kB, the throwing experiment's results.json 150 kB, an entry's or a stage's arrays 16 kB).
+JSON_BYTES = 16_000_000
+NPZ_BYTES = 64_000_000  # the file, and its arrays unpacked
 
 # The process's umask, read once (reading it means setting it): temporary files are made private (0600),
 # and the renamed file gets the permissions an ordinary new file would have.
@@ -26,36 +37,88 @@ _UMASK = os.umask(0o022)
 os.umask(_UMASK)
 
 
+# A temporary's name, ``.NAME.besman-XXXXXXXX.tmp``: the mark that ties it to besman and to the file NAME it
+# becomes (mkstemp's random part has no dot).
+_MARK = ".besman-"
+_TEMPORARY = re.compile(rf"\.(?P<name>.+){re.escape(_MARK)}[^./]+\.tmp")
+
+
+class WriteError(BesmanError):
+    """A file could not be written (a full disk, a file-size limit, a permission); the message names the
+    file, and nothing of it is left behind."""
+
+
+def write_error(path: Path, error: OSError) -> WriteError:
+    """The error of a failed write of ``path`` (the final path, not its temporary's)."""
+    return WriteError(f"{path}: cannot write it ({error.strerror or error})")
+
+
 def write_atomically(path: str | Path, data: bytes) -> Path:
-    """Writes ``data`` to ``path`` via a temporary file and a rename (permissions as for a new file)."""
+    """Writes ``data`` to ``path`` via a temporary file and a rename (permissions as for a new file); a
+    failed write removes the temporary and raises a :class:`WriteError` naming ``path``."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        descriptor, temporary = open_temporary(path)
+    except OSError as error:
+        raise write_error(path, error) from error
     try:
         with os.fdopen(descriptor, "wb") as file:
             file.write(data)
             file.flush()
             os.fsync(file.fileno())
-        os.chmod(temporary, 0o666 & ~_UMASK)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
+        put_in_place(temporary, path)
+    except BaseException as error:
+        temporary.unlink(missing_ok=True)
+        if isinstance(error, OSError):
+            raise write_error(path, error) from error
         raise
     return path
 
 
-def is_temporary(path: Path) -> bool:
-    """Whether ``path`` is a temporary of :func:`write_atomically` (``.NAME.XXXX.tmp``): the only file a
-    writer that dies mid-write leaves behind."""
-    return path.name.startswith(".") and path.name.endswith(".tmp")
+def open_temporary(path: Path) -> tuple[int, Path]:
+    """A new private (0600) temporary file beside ``path``, named with besman's mark for ``path``
+    (:func:`is_temporary`): its descriptor and path."""
+    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}{_MARK}", suffix=".tmp")
+    return descriptor, Path(temporary)
 
 
-def remove_temporaries(folder: Path) -> None:
-    """Removes the temporaries that dead writers left under ``folder``; for the folder's one writer
-    (:class:`~besman.skills.writer_lock.WriterLock`), whose own temporaries are not there yet."""
-    if folder.is_dir():
-        for path in folder.rglob(".*.tmp"):
-            path.unlink(missing_ok=True)
+def put_in_place(temporary: Path, path: Path) -> None:
+    """Renames a finished temporary to ``path``, with the permissions an ordinary new file would have."""
+    os.chmod(temporary, 0o666 & ~_UMASK)
+    os.replace(temporary, path)
+
+
+def is_temporary(path: Path, of: str | None = None) -> bool:
+    """Whether ``path`` is named as a temporary of besman's (``.NAME.besman-XXXXXXXX.tmp``; of the file
+    named ``of``, if given): the only file a writer that dies mid-write leaves behind."""
+    match = _TEMPORARY.fullmatch(path.name)
+    return match is not None and of in (None, match["name"])
+
+
+def holds_files(folder: Path) -> bool:
+    """Whether ``folder`` holds a file, at any depth, other than besman's temporaries."""
+    return folder.is_dir() and any(p.is_file() and not is_temporary(p) for p in folder.rglob("*"))
+
+
+def remove_temporaries(folder: Path, parts: tuple[str, ...] = (), of: str | None = None) -> None:
+    """Removes the temporaries that dead writers left in ``folder`` and in its subfolders ``parts`` (paths
+    relative to it; no deeper, and no symbolic link): regular files of this user, named as besman's
+    (of the file named ``of``, if given). For the one writer (:class:`~besman.skills.writer_lock.WriterLock`)
+    of an output known to be besman's: its own temporaries are not there yet, and nothing else is touched."""
+    places = [folder, *(folder / part for part in parts if not (folder / part).is_symlink())]
+    for place in places:
+        for path in place.iterdir() if place.is_dir() else ():
+            if is_temporary(path, of) and _is_own_file(path):
+                path.unlink(missing_ok=True)
+
+
+def _is_own_file(path: Path) -> bool:
+    try:
+        status = path.lstat()
+    except FileNotFoundError:
+        return False
+    return stat.S_ISREG(status.st_mode) and status.st_uid == os.geteuid()
 
 
 def check_output(
@@ -93,13 +156,19 @@ def sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def read_json(path: Path, error: type[BesmanError] = InputError, top: type[dict] | type[list] = dict) -> Any:
-    """The JSON object (or, with ``top=list``, list) in ``path``; ``error`` names the file if it is missing or
-    malformed."""
+def read_json(
+    path: Path,
+    error: type[BesmanError] = InputError,
+    top: type[dict] | type[list] = dict,
+    *,
+    what: str = "JSON document",
+    max_bytes: int = JSON_BYTES,
+) -> Any:
+    """The JSON object (or, with ``top=list``, list) in ``path``, a regular file of at most ``max_bytes``;
+    ``error`` names the file if it is missing, special, too large or malformed (``what`` names its kind)."""
+    data = read_bytes(path, max_bytes, what=what, error=error)
     try:
-        value = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise error(f"{path}: no such file") from None
+        value = json.loads(data.decode("utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as problem:
         raise error(f"{path}: not valid JSON ({problem})") from None
     if not isinstance(value, top):
@@ -152,17 +221,26 @@ def optional_field(
     return require_field(mapping, key, kind, where, error)
 
 
-def read_npz(path: Path, expected_sha256: str | None = None) -> dict[str, np.ndarray]:
-    """The arrays of an NPZ file (no pickles), checked against a checksum when one is given."""
-    try:
-        data = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
+def read_npz(
+    path: Path,
+    expected_sha256: str | None = None,
+    *,
+    what: str = "NPZ archive",
+    max_bytes: int = NPZ_BYTES,
+    raise_with: str = "",
+) -> dict[str, np.ndarray]:
+    """The arrays of an NPZ file (no pickles), checked against a checksum when one is given; the file and
+    its arrays unpacked are at most ``max_bytes`` each (``what`` names its kind in messages, ``raise_with``
+    how to raise the bound)."""
+    data = read_bytes(path, max_bytes, what=what, raise_with=raise_with)
     if expected_sha256 is not None and sha256(data) != expected_sha256:
         raise InputError(f"{path}: the checksum does not match its JSON file (corrupted or modified)")
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as archive:
+            _check_unpacked(archive, path, max_bytes, what)
             return {name: archive[name] for name in archive.files}
+    except InputError:
+        raise
     except ValueError as error:
         if "pickle" in str(error):  # numpy would suggest allow_pickle: besman never unpickles
             raise InputError(
@@ -172,3 +250,11 @@ def read_npz(path: Path, expected_sha256: str | None = None) -> dict[str, np.nda
         raise InputError(f"{path}: not a readable NPZ archive ({error})") from None
     except Exception as error:  # zipfile, zlib and numpy raise many kinds for damaged archives
         raise InputError(f"{path}: not a readable NPZ archive ({type(error).__name__}: {error})") from None
+
+
+def _check_unpacked(archive: np.lib.npyio.NpzFile, path: Path, max_bytes: int, what: str) -> None:
+    """Refuses an archive whose members unpack to more than ``max_bytes`` (a few compressed kilobytes can
+    unpack to gigabytes); zipfile stops each member at its stated size, so those sizes bound the memory."""
+    unpacked = sum(member.file_size for member in archive.zip.infolist())
+    if unpacked > max_bytes:
+        raise InputError(f"{path}: unpacks to {unpacked} bytes, more than the {max_bytes} of a {what}")

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from besman.skills.errors import InputError
-from besman.skills.validation import finite_array
+from besman.skills.validation import finite_array, items, text
 
 
 @dataclass(frozen=True)
@@ -23,6 +23,9 @@ class TaskBounds:
     high: tuple[float, ...]
 
     def __post_init__(self) -> None:
+        items(text("a task parameter's name"), "a tuple of names")("skills.TaskBounds: names", self.names)
+        for bound in ("low", "high"):
+            finite_array(f"skills.TaskBounds: {bound}", getattr(self, bound), ndim=1)
         if not len(self.names) == len(self.low) == len(self.high):
             raise InputError("bounds need as many names as low and high values")
         if any(lo > hi for lo, hi in zip(self.low, self.high, strict=True)):
@@ -59,7 +62,7 @@ class TaskBounds:
     def normalise(self, taus: np.ndarray) -> np.ndarray:
         """taus mapped to the unit box ([0, 1] per parameter; beyond it outside the box)."""
         low = np.asarray(self.low, dtype=float)
-        return (np.asarray(taus, dtype=float) - low) / np.maximum(np.asarray(self.high) - low, 1e-300)
+        return (finite_array("taus", taus) - low) / np.maximum(np.asarray(self.high) - low, 1e-300)
 
     def as_dict(self) -> dict:
         return {name: [lo, hi] for name, lo, hi in zip(self.names, self.low, self.high, strict=True)}

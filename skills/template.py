@@ -44,7 +44,7 @@ from besman.skills.errors import InputError
 from besman.skills.primitive import MovementPrimitive
 from besman.skills.tasks import TaskBounds
 from besman.skills.template_models import PerDimensionModel, SharedKernel, SharedKernelModel
-from besman.skills.validation import finite_array
+from besman.skills.validation import COUNT, SEED, checked, finite_array, instance, text
 
 MODELS = ("shared", "per_dimension")
 EXPLORATIONS = ("uncertainty", "weight_proportional", "isotropic", "correlated")
@@ -70,6 +70,13 @@ class SkillTemplate:
         task: what the template is for (e.g. "throwing/paper"); provenance: JSON-compatible facts.
     """
 
+    @checked(
+        name=text("a template name"),
+        prototype=instance(MovementPrimitive, "a MovementPrimitive"),
+        box=instance(TaskBounds, "a TaskBounds"),
+        seed=SEED,
+        task=text("a task name"),
+    )
     def __init__(
         self,
         name: str,
@@ -184,6 +191,7 @@ class SkillTemplate:
         std = np.sqrt(variance)
         return mean, self._correlation * np.outer(std, std)
 
+    @checked(count=COUNT, seed=SEED)
     def sample(self, tau, count: int, seed: int) -> np.ndarray:
         """``count`` thetas (count, n) drawn from N(Theta(tau), Omega(tau)); the same draws for the same
         template, tau and seed."""

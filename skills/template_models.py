@@ -63,6 +63,7 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, WhiteKernel
 
 from besman.skills.errors import InputError
+from besman.skills.seeds import SEEDS
 from besman.skills.validation import finite_array
 
 LENGTH_SCALE_BOUNDS = (0.05, 20.0)  # in box widths
@@ -173,7 +174,8 @@ class PerDimensionModel:
 
     def __init__(self, inputs: np.ndarray, thetas: np.ndarray, hyperparameters=None, seed: int = 0) -> None:
         if hyperparameters is None:
-            self._gps = [_fit(inputs, thetas[:, j], seed + j) for j in range(thetas.shape[1])]
+            # seed + j as the committed experiment's fits had it, wrapped into scikit-learn's range at the top
+            self._gps = [_fit(inputs, thetas[:, j], (seed + j) % SEEDS) for j in range(thetas.shape[1])]
             return
         hyperparameters = finite_array("hyperparameters", hyperparameters, ndim=2)
         kernel = per_dimension_kernel(inputs.shape[1])

@@ -14,12 +14,15 @@ can see.
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
+import stat
 import sys
 from pathlib import Path
 
 from besman.skills.errors import BesmanError
+from besman.skills.storage import write_error
 
 
 class OutputBusyError(BesmanError):
@@ -35,10 +38,24 @@ class WriterLock:
         self._file = None
 
     def acquire(self) -> WriterLock:
-        """Takes the lock or raises :class:`OutputBusyError` naming the holder."""
-        self.lock_path.parent.mkdir(parents=True, exist_ok=True)
+        """Takes the lock or raises :class:`OutputBusyError` naming the holder (or, if the lock file cannot
+        be written, a :class:`~besman.skills.storage.WriteError` naming the output, with no lock left)."""
+        try:
+            self.lock_path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = self._locked_file()
+            # Unbuffered: nothing is left to flush (and fail again on a full disk) when it is released.
+            descriptor = self._file.fileno()
+            os.ftruncate(descriptor, 0)
+            os.write(descriptor, f"pid {os.getpid()} ({' '.join(sys.argv) or sys.executable})\n".encode())
+        except OSError as error:
+            self.release()
+            raise write_error(self.path, error) from error
+        return self
+
+    def _locked_file(self):
+        """The lock file at the path, opened and locked."""
         while True:
-            file = open(self.lock_path, "a+")  # noqa: SIM115 (held until release)
+            file = self._open()
             try:
                 fcntl.flock(file, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -51,14 +68,29 @@ class WriterLock:
             except FileNotFoundError:
                 same = False
             if same:
-                break
+                return file
             file.close()  # the holder finished and removed it meanwhile: lock the file at the path now
-        file.seek(0)
-        file.truncate()
-        file.write(f"pid {os.getpid()} ({' '.join(sys.argv) or sys.executable})\n")
-        file.flush()
-        self._file = file
-        return self
+
+    def _open(self):
+        """The file at the lock path, made if missing; anything else there than a regular file (a FIFO, a
+        link to a device) is refused, never read: it is not besman's and reading it could block for ever."""
+        flags = os.O_RDWR | os.O_CREAT | os.O_APPEND | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+        try:
+            descriptor = os.open(self.lock_path, flags, 0o644)
+        except OSError as error:
+            if error.errno != errno.ELOOP:
+                raise
+            raise OutputBusyError(
+                f"{self.option} {self.path}: {self.lock_path} is a link, not besman's lock file; remove it"
+            ) from None
+        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+            os.close(descriptor)
+            raise OutputBusyError(
+                f"{self.option} {self.path}: {self.lock_path} is not a regular file, not besman's lock file; "
+                "remove it"
+            )
+        os.set_blocking(descriptor, True)
+        return os.fdopen(descriptor, "a+")
 
     def release(self) -> None:
         """Gives the lock up (removing the file first, so that a waiting command finds the path free)."""

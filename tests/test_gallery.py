@@ -187,7 +187,9 @@ def test_a_demo_runs_watched_in_the_browser(name):
     """--view: the run goes at --speed with the viewer serving the page; the run succeeds as without."""
     from besman.commands.trees import _watched_demo
 
-    args = argparse.Namespace(view=True, host="127.0.0.1", port=0, speed=1000.0, seed=2, log=None)
+    args = argparse.Namespace(
+        view=True, host="127.0.0.1", port=0, allow_origin=[], speed=1000.0, seed=2, log=None
+    )
     summary, viewers = _watched_demo(args, demo(name), {})
     try:
         assert summary.success and summary.demo == name and summary.seed == 2

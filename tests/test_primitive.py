@@ -124,7 +124,7 @@ def test_saving_over_an_existing_primitive_is_atomic(tmp_path, joint_primitive, 
         raise OSError("disk full")
 
     monkeypatch.setattr(storage.os, "replace", failing_replace)
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(storage.WriteError, match=r"reach\.npz: cannot write it \(disk full\)"):
         joint_primitive.save(path)
     assert path.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["reach.json", "reach.npz"], (

@@ -154,7 +154,8 @@ def test_primitives_are_referenced_by_file_and_round_trip(tmp_path):
          root:
            InstantiateSkillTemplate: {name: t, template: "nowhere:thing"}
          """,
-            r"bad.yaml:3: root.InstantiateSkillTemplate.template: cannot import the template 'nowhere:thing'",
+            r"bad.yaml:3: root.InstantiateSkillTemplate.template: 'nowhere:thing': module 'nowhere' is not "
+            r"allowed",
         ),
     ],
 )
@@ -195,7 +196,7 @@ def test_a_missing_tree_file():
         load_tree("nothing.yaml")
 
 
-def test_templates_and_pools_are_referenced_by_module_attribute(tmp_path, monkeypatch):
+def test_templates_and_pools_are_referenced_by_module_attribute_of_an_allowed_module(tmp_path, monkeypatch):
     (tmp_path / "my_skills.py").write_text(
         textwrap.dedent("""
         from besman.skills import DMP, MovementPrimitive
@@ -222,9 +223,10 @@ def test_templates_and_pools_are_referenced_by_module_attribute(tmp_path, monkey
               - InstantiateSkillTemplate: {name: direct, template: "my_skills:REACH", namespace: direct}
     """,
     )
-    root = load_tree(path)
+    root = load_tree(path, allow_modules=["my_skills"])
     assert root.children[0].pool["reach"] is root.children[1].template
-    assert describe(loads_tree(dump_tree(root), base=tmp_path)) == describe(root)
+    again = loads_tree(dump_tree(root), base=tmp_path, allow_modules=["my_skills"])
+    assert describe(again) == describe(root)
     bad = write(
         tmp_path,
         "bad.yaml",
@@ -235,7 +237,7 @@ def test_templates_and_pools_are_referenced_by_module_attribute(tmp_path, monkey
     """,
     )
     with pytest.raises(TreeFileError, match="is not a pool"):
-        load_tree(bad)
+        load_tree(bad, allow_modules=["my_skills"])
 
 
 def test_an_include_remaps_the_keys_of_the_included_subtree(tmp_path):

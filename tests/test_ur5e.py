@@ -201,7 +201,9 @@ def test_the_viewer_shows_whichever_robot_runs():
     from besman.commands.trees import _watched_demo
     from besman.trees.gallery import demo
 
-    args = argparse.Namespace(view=True, host="127.0.0.1", port=0, speed=1000.0, seed=3, log=None)
+    args = argparse.Namespace(
+        view=True, host="127.0.0.1", port=0, allow_origin=[], speed=1000.0, seed=3, log=None
+    )
     summary, viewers = _watched_demo(args, demo("sort"), {"robot": "ur5e"})
     try:
         assert summary.success and summary.robot == "ur5e"

@@ -7,16 +7,18 @@ given to ``BehaviourTree.setup(executor=...)``, using the blackboard by declared
 :mod:`besman.trees.nodes`); :class:`Runner` ticks a tree in lockstep with the simulation and logs every
 tick; :mod:`besman.trees.tabletop` runs trees on a robot's tabletop and :mod:`besman.trees.gallery` the
 demos, each run ending in a :class:`RunSummary`; :mod:`besman.trees.watching` shows a run in the browser
-viewer.
+viewer. A file names Python templates and pools only as registered (:func:`register_template`,
+:func:`register_pool`) or in modules the caller allows (:mod:`besman.trees.registry`).
 """
 
 from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
-from besman.trees.files import TreeFileError, describe, dump_tree, load_tree, loads_tree
+from besman.trees.files import TreeFileError, check_tree, describe, dump_tree, load_tree, loads_tree
 from besman.trees.guards import KeepApart
 from besman.trees.idioms import grasp, grasp_then_place, place, return_home
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
 from besman.trees.loops import ForEach
 from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanPlace, PlanReturn
+from besman.trees.registry import register_pool, register_template
 from besman.trees.runner import Runner, RunResult, read_log
 from besman.trees.summary import RunSummary
 from besman.trees.tabletop import run_on_tabletop, tabletop_run
@@ -47,6 +49,7 @@ __all__ = [
     "Throw",
     "TreeFileError",
     "Wait",
+    "check_tree",
     "describe",
     "dump_tree",
     "grasp",
@@ -55,6 +58,8 @@ __all__ = [
     "loads_tree",
     "place",
     "read_log",
+    "register_pool",
+    "register_template",
     "return_home",
     "run_on_tabletop",
     "tabletop_run",

@@ -20,6 +20,7 @@ can work through several objects (:class:`~besman.trees.loops.ForEach`).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -28,7 +29,23 @@ from py_trees.blackboard import Blackboard
 from py_trees.common import Access
 
 from besman.sim.executor import Executor
+from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError, UnknownNameError
+from besman.skills.validation import as_given, checked, instance, integer, number, optional, shaped, text
+
+BEHAVIOUR = instance(py_trees.behaviour.Behaviour, "a py_trees behaviour")
+NAMES = instance(Mapping, "a mapping of names")
+# The Python type of each parameter kind a class declares (its rule, ">0" and the like, stays with the tree
+# file's loader and the class): a behaviour built in code is refused by the parameter's name, as in a file.
+KIND_CHECKS = {
+    "str": text("a string"),
+    "float": number,
+    "int": integer(),
+    "bool": instance(bool, "True or False"),
+    "floats": shaped(ndim=1),
+    "keys": NAMES,
+    "primitive": instance(MovementPrimitive, "a MovementPrimitive"),
+}
 
 
 class RoleBehaviour(py_trees.behaviour.Behaviour):
@@ -42,6 +59,24 @@ class RoleBehaviour(py_trees.behaviour.Behaviour):
 
     roles: ClassVar[Mapping[str, Access]] = {}
     parameters: ClassVar[Mapping[str, str]] = {}
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Checks the arguments of each subclass's constructor by the kinds it declares (and ``name``,
+        ``namespace``, ``remap``), leaving their values as given."""
+        super().__init_subclass__(**kwargs)
+        if "__init__" in vars(cls):
+            kinds = {param: re.match(r"[a-z]+", kind)[0] for param, kind in cls.parameters.items()}
+            checks = {
+                param: optional(KIND_CHECKS[kind]) for param, kind in kinds.items() if kind in KIND_CHECKS
+            }
+            checks |= {
+                "name": text("a behaviour name"),
+                "namespace": text("a namespace"),
+                "remap": optional(NAMES),
+            }
+            cls.__init__ = checked(**{param: as_given(check) for param, check in checks.items()})(
+                cls.__init__
+            )
 
     def __init__(self, name: str, *, namespace: str = "", remap: Mapping[str, str] | None = None) -> None:
         super().__init__(name=name)

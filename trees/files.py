@@ -21,21 +21,23 @@ Node types (:data:`~besman.trees.nodes.NODE_TYPES`, derived from the classes): t
 ``PlanPlace``, ``PlanReturn``, ``PlanMove``, ``AimThrow``, ``Throw``) and subtree idioms
 (``Grasp``, ``Place``, ``ReturnHome``, ``GraspThenPlace``); ``besman tree nodes`` lists them all with their
 parameters (:mod:`besman.trees.reference`). Primitives are referenced by the path of their JSON file;
-templates by ``module:attribute`` (an object with ``instantiate(tau)``), or a pool and a ``template_name``:
+templates by ``MODULE:NAME`` (an object with ``instantiate(tau)``), or a pool and a ``template_name``:
 ``pool:`` names a skill template pool directory (relative to the tree file,
-:class:`~besman.skills.pool.SkillTemplatePool`) or a ``module:attribute`` mapping of names to templates.
-Leaves with blackboard roles take ``namespace`` and ``remap`` (role -> key).
+:class:`~besman.skills.pool.SkillTemplatePool`) or a ``MODULE:NAME`` mapping of names to templates. A
+``MODULE:NAME`` is registered in Python or in a module the user allows (``allow_modules``); a file alone
+never makes anything import (:mod:`besman.trees.registry`). Leaves with blackboard roles take ``namespace``
+and ``remap`` (role -> key).
 
 :func:`load_tree` checks the whole file first - unknown node types, missing or mistyped parameters, missing
 files, cycles of includes - and reports the file, line and path of the first problem (:class:`TreeFileError`).
-:func:`describe` and :func:`dump_tree` turn a tree back into the same format, so a file round-trips.
+:func:`check_tree` does the same without importing any module. :func:`describe` and :func:`dump_tree` turn a
+tree back into the same format, so a file round-trips.
 """
 
 from __future__ import annotations
 
-import importlib
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +47,11 @@ import yaml
 from besman.skills import MovementPrimitive
 from besman.skills.errors import BesmanError
 from besman.skills.pool import SkillTemplatePool
+from besman.skills.reading import read_bytes
+from besman.skills.validation import PATH, checked, instance, optional, text
+from besman.trees.base import BEHAVIOUR
 from besman.trees.nodes import NODE_TYPES, NodeType, Param
+from besman.trees.registry import UNIMPORTED, allowed_modules, resolve
 from besman.trees.timing import SimTimeout
 
 FORMAT_VERSION = 1
@@ -59,17 +65,39 @@ class TreeFileError(BesmanError):
     """A tree file is invalid; the message starts with ``file:line: path:``."""
 
 
-def load_tree(path: str | Path, *, pool: str | Path | None = None) -> py_trees.behaviour.Behaviour:
-    """Builds the tree of a file; a :class:`TreeFileError` names the file, line and path of any problem.
-    ``pool`` (a pool directory) replaces every pool the file names (``besman run --pool``)."""
-    return _Builder(_pool_override(pool)).file(Path(path), remap={}, stack=())
-
-
-def loads_tree(
-    text: str, *, base: str | Path = ".", source: str = "<text>", pool: str | Path | None = None
+@checked(path=PATH, pool=optional(PATH))
+def load_tree(
+    path: str | Path, *, pool: str | Path | None = None, allow_modules: Iterable[str] = ()
 ) -> py_trees.behaviour.Behaviour:
-    """Builds a tree from YAML text (includes are relative to ``base``; ``pool`` as for :func:`load_tree`)."""
-    return _Builder(_pool_override(pool)).document(text, Path(base) / source, remap={}, stack=())
+    """Builds the tree of a file; a :class:`TreeFileError` names the file, line and path of any problem.
+    ``pool`` (a pool directory) replaces every pool the file names (``besman run --pool``); the file's
+    ``MODULE:NAME`` references are registered ones or in ``allow_modules``, imported here."""
+    builder = _Builder(_pool_override(pool), allowed_modules(allow_modules), imports=True)
+    return builder.file(Path(path), remap={}, stack=())
+
+
+@checked(text=instance(str | bytes, "YAML text (str)"), base=PATH, source=text("a name"), pool=optional(PATH))
+def loads_tree(
+    text: str,
+    *,
+    base: str | Path = ".",
+    source: str = "<text>",
+    pool: str | Path | None = None,
+    allow_modules: Iterable[str] = (),
+) -> py_trees.behaviour.Behaviour:
+    """Builds a tree from YAML text (includes are relative to ``base``; ``pool`` and ``allow_modules`` as
+    for :func:`load_tree`)."""
+    builder = _Builder(_pool_override(pool), allowed_modules(allow_modules), imports=True)
+    return builder.document(text, Path(base) / source, remap={}, stack=())
+
+
+@checked(path=PATH)
+def check_tree(path: str | Path, *, allow_modules: Iterable[str] = ()) -> list[str]:
+    """Checks a file as :func:`load_tree` does, but imports nothing: a ``MODULE:NAME`` of an allowed module
+    is checked for its form only. Returns those references (left to be imported when the tree is built)."""
+    builder = _Builder(None, allowed_modules(allow_modules), imports=False)
+    builder.file(Path(path), remap={}, stack=())
+    return list(dict.fromkeys(builder.unimported))
 
 
 def _pool_override(pool: str | Path | None) -> Path | None:
@@ -79,8 +107,10 @@ def _pool_override(pool: str | Path | None) -> Path | None:
 
 
 class _Builder:
-    def __init__(self, pool: Path | None = None) -> None:
+    def __init__(self, pool: Path | None, allowed: frozenset[str], imports: bool) -> None:
         self.pool = pool  # replaces every pool the files name
+        self.allowed, self.imports = allowed, imports  # modules that MODULE:NAME may name; import them?
+        self.unimported: list[str] = []  # the references left to import (not self.imports)
 
     def file(self, path: Path, remap: Mapping[str, str], stack: tuple[Path, ...]):
         resolved = path.resolve()
@@ -89,13 +119,9 @@ class _Builder:
             raise TreeFileError(f"{path}: includes form a cycle: {chain}")
         where = f"{stack[-1]}: " if stack else ""
         try:
-            if path.stat().st_size > MAX_FILE_BYTES:
-                raise TreeFileError(f"{where}{path}: larger than {MAX_FILE_BYTES} bytes; not a tree file")
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise TreeFileError(f"{where}{path}: no such file") from None
-        except IsADirectoryError:
-            raise TreeFileError(f"{where}{path}: a directory, not a tree file") from None
+            text = read_bytes(path, MAX_FILE_BYTES, what="tree file", error=TreeFileError).decode("utf-8")
+        except TreeFileError as error:
+            raise TreeFileError(f"{where}{error}") from None
         except UnicodeDecodeError as error:
             raise TreeFileError(f"{where}{path}: not a text file (byte {error.start} is not UTF-8)") from None
         return self.document(text, path, remap, (*stack, resolved))
@@ -310,20 +336,13 @@ class _Builder:
                 raise self._error(node, path, where, f"no pool directory {str(directory)!r}")
             return SkillTemplatePool(directory)
         if kind in ("template", "pool"):
-            module, _, attribute = text.partition(":")
             try:
-                template = getattr(importlib.import_module(module), attribute)
-            except (ImportError, AttributeError, ValueError):
-                raise self._error(
-                    node, path, where, f"cannot import the template {text!r} (module:attribute)"
-                ) from None
-            if kind == "pool" and not isinstance(template, Mapping):
-                raise self._error(
-                    node, path, where, f"{text!r} is not a pool (a mapping of names to templates)"
-                )
-            if kind == "template" and not callable(getattr(template, "instantiate", None)):
-                raise self._error(node, path, where, f"{text!r} has no instantiate(tau)")
-            return template
+                found = resolve(text, kind, self.allowed, imports=self.imports)
+            except BesmanError as error:
+                raise self._error(node, path, where, str(error)) from None
+            if found is UNIMPORTED:
+                self.unimported.append(text)
+            return found
         raise AssertionError(kind)
 
     def _number(self, node, path: Path, where: str, kind: type):
@@ -339,6 +358,7 @@ class _Builder:
         return number
 
 
+@checked(node=BEHAVIOUR)
 def describe(node: py_trees.behaviour.Behaviour) -> dict:
     """A tree as plain data in the file format (node types with their parameters, nested)."""
     spec = dict(getattr(node, "besman_spec", None) or _spec_of(node))
@@ -392,6 +412,7 @@ def _spec_of(node: py_trees.behaviour.Behaviour) -> dict:
     raise TreeFileError(f"{name}: {type(node).__name__} has no file form")
 
 
+@checked(root=BEHAVIOUR)
 def dump_tree(root: py_trees.behaviour.Behaviour) -> str:
     """The tree file text of a tree (subtrees made by file nodes are written as those nodes)."""
     return yaml.safe_dump({"besman_tree": FORMAT_VERSION, "root": describe(root)}, sort_keys=False)
@@ -400,6 +421,7 @@ def dump_tree(root: py_trees.behaviour.Behaviour) -> str:
 __all__ = [
     "NODE_TYPES",
     "TreeFileError",
+    "check_tree",
     "describe",
     "dump_tree",
     "load_tree",

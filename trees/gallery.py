@@ -35,6 +35,7 @@ import py_trees
 
 import besman.robots as robots
 from besman import examples
+from besman.robots.robot import ROBOT
 from besman.sim.disturbances import TakeFromHand
 from besman.sim.executor import Executor
 from besman.sim.pick_place import PLACE_TOLERANCE
@@ -42,6 +43,7 @@ from besman.sim.proximity import ArmProximity, moved_geoms
 from besman.sim.tasks import one_hand_tabletop
 from besman.sim.world import GraspableObject, tabletop_world
 from besman.skills.errors import InputError
+from besman.skills.validation import CALLABLE, PATH, SEED, checked, mapping, numeric, optional, text
 from besman.trees.blackboard import set_task_values
 from besman.trees.files import load_tree
 from besman.trees.runner import Runner, RunResult
@@ -450,6 +452,16 @@ def demo(name: str) -> Demo:
     return found
 
 
+# A demo's arguments, checked where run_demo or prepare_demo is called: its options are these alone.
+DEMO_ARGUMENTS = {
+    "name": text("a demo name"),
+    "seed": optional(SEED),
+    "options": mapping(robot=optional(ROBOT), target=optional(numeric)),
+    "observe": optional(CALLABLE),
+}
+
+
+@checked(**DEMO_ARGUMENTS, log=optional(PATH))
 def run_demo(
     name: str,
     seed: int | None = None,
@@ -463,6 +475,7 @@ def run_demo(
     return prepared.judge(prepared.runner.run(log=log))
 
 
+@checked(**DEMO_ARGUMENTS)
 def prepare_demo(
     name: str, seed: int | None = None, options: Mapping | None = None, observe: Observer | None = None
 ) -> DemoRun:

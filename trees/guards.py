@@ -16,7 +16,8 @@ import py_trees
 from py_trees.common import Status
 
 from besman.sim.proximity import ArmProximity
-from besman.trees.base import executor_of
+from besman.skills.validation import checked, optional, positive, text
+from besman.trees.base import BEHAVIOUR, executor_of
 from besman.trees.conditions import apart, proximity_of
 
 
@@ -24,6 +25,13 @@ class KeepApart(py_trees.decorators.Decorator):
     """Runs ``child`` while the executor's ``arm`` and the ``other`` arm stay ``margin`` (m) apart; see the
     module documentation."""
 
+    @checked(
+        name=text("a behaviour name"),
+        child=BEHAVIOUR,
+        other=text("an arm name"),
+        margin=positive,
+        arm=optional(text("an arm name")),
+    )
     def __init__(
         self,
         name: str,

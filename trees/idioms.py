@@ -25,7 +25,8 @@ import py_trees
 
 from besman.sim.manipulation import PICK_STEPS, PLACE_STEPS, PickPlacePlan
 from besman.skills.errors import InputError
-from besman.trees.base import RoleBehaviour
+from besman.skills.validation import COUNT, as_given, checked, instance, non_negative, optional, shaped, text
+from besman.trees.base import NAMES, RoleBehaviour
 from besman.trees.conditions import ObjectAt, ObjectGrasped
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
 from besman.trees.manipulation import (
@@ -37,7 +38,24 @@ from besman.trees.manipulation import (
 )
 from besman.trees.templates import check_template
 
+# The subtrees' arguments, checked where each is called (each takes some of them).
+SUBTREE_ARGUMENTS = {
+    "name": text("a subtree name"),
+    "object": text("an object name or a blackboard key"),
+    "namespace": text("a namespace"),
+    "target": optional(text("a blackboard key")),
+    "attempts": COUNT,
+    "plan": instance(PickPlacePlan, "a PickPlacePlan"),
+    "remap": optional(NAMES),
+    "pool": optional(instance(Mapping, "a pool (skills.SkillTemplatePool)")),
+    "template": optional(text("a template name")),
+    "refine_above": optional(non_negative),
+    "arm": optional(text("an arm name")),
+    "offset": optional(as_given(shaped(shape=(2,)))),
+}
 
+
+@checked(**SUBTREE_ARGUMENTS)
 def grasp(
     name: str = "grasp",
     *,
@@ -91,6 +109,7 @@ def grasp(
     return tree
 
 
+@checked(**SUBTREE_ARGUMENTS)
 def place(
     name: str = "place",
     *,
@@ -140,6 +159,7 @@ def place(
     return tree
 
 
+@checked(**SUBTREE_ARGUMENTS)
 def grasp_then_place(
     name: str = "grasp then place",
     *,
@@ -171,6 +191,7 @@ def grasp_then_place(
     return tree
 
 
+@checked(**SUBTREE_ARGUMENTS)
 def return_home(
     name: str = "return home",
     *,

@@ -18,6 +18,9 @@ from collections.abc import Mapping
 import py_trees
 from py_trees.common import Access, Status
 
+from besman.skills.validation import checked, text
+from besman.trees.base import BEHAVIOUR
+
 
 class ForEach(py_trees.decorators.Decorator):
     """Runs ``child`` once per item of the list at the blackboard key ``items``; see the module
@@ -30,6 +33,12 @@ class ForEach(py_trees.decorators.Decorator):
         namespace: where each item's fields are written (``/<namespace>/<field>``).
     """
 
+    @checked(
+        name=text("a behaviour name"),
+        child=BEHAVIOUR,
+        items=text("a blackboard key"),
+        namespace=text("a namespace"),
+    )
     def __init__(self, name: str, child: py_trees.behaviour.Behaviour, *, items: str, namespace: str) -> None:
         super().__init__(name=name, child=child)
         self.items_key, self.namespace = items, "/" + namespace.strip("/")

@@ -5,9 +5,10 @@ blackboard roles once; its defaults are its constructor's. Roles add ``namespace
 idioms are functions, so their parameter kinds are declared here; py_trees' composites and decorators get a
 line each. Parameter kinds: ``str``, ``float``, ``int``, ``bool``, ``floats`` (a list of numbers), ``keys``
 (a mapping of roles or keys to keys), ``primitive`` (a primitive's JSON file), ``template`` and ``pool``
-(``module:attribute``, or a pool directory). A kind may carry a rule that the loader checks with the file
-and line: ``>0`` or ``>=1`` (bounds of a number), ``[2|3]`` (allowed lengths of a list), ``{all|one}``
-(allowed values of a string); numbers are always finite.
+(``MODULE:NAME``, registered or of an allowed module: :mod:`besman.trees.registry`; or a pool directory).
+A kind may carry a rule that the loader checks with the file and line: ``>0`` or ``>=1`` (bounds of a
+number), ``[2|3]`` (allowed lengths of a list), ``{all|one}`` (allowed values of a string); numbers are
+always finite.
 """
 
 from __future__ import annotations

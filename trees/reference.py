@@ -35,8 +35,10 @@ _KINDS = {
     "floats": "list of numbers",
     "keys": "mapping of roles or keys to keys",
     "primitive": "a primitive's JSON file (relative to the tree file)",
-    "template": "module:attribute of an object with instantiate(tau)",
-    "pool": "a skill template pool directory (relative to the tree file) or module:attribute",
+    "template": "MODULE:NAME of an object with instantiate(tau): registered (register_template) or in a "
+    "module allowed with --allow-module",
+    "pool": "a skill template pool directory (relative to the tree file) or MODULE:NAME of a mapping of "
+    "names to templates: registered (register_pool) or in a module allowed with --allow-module",
 }
 
 

@@ -21,16 +21,17 @@ runner knows nothing of any particular task: :mod:`besman.trees.tabletop` sets u
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 import os
-import tempfile
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import mujoco
 import numpy as np
@@ -40,10 +41,22 @@ from py_trees.common import Status
 from besman.sim.executor import Executor
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
-from besman.skills.storage import check_schema_version
+from besman.skills.reading import Limit, read_bytes
+from besman.skills.storage import (
+    check_schema_version,
+    open_temporary,
+    put_in_place,
+    remove_temporaries,
+    write_error,
+)
+from besman.skills.validation import CALLABLE, COUNT, PATH, checked, instance, optional, positive
 from besman.skills.writer_lock import WriterLock
+from besman.trees.base import BEHAVIOUR
 
 SCHEMA_VERSION = 1
+# Run logs are refused above this size: a log takes about 140 kB a simulated second (the grasp-then-place
+# demo's), so this holds some 15 minutes of a run; reading one takes about 2.5 times its size in memory.
+LOG_LIMIT = Limit(128_000_000, "BESMAN_MAX_LOG_BYTES")
 _STATUS_NAMES = {status: status.value for status in Status}  # an Enum's .value is a slow descriptor
 
 
@@ -110,6 +123,14 @@ class Runner:
         observe: called after every tick with the runner and the tick's record (e.g. a viewer).
     """
 
+    @checked(
+        root=BEHAVIOUR,
+        executor=instance(Executor, "an Executor (sim.Executor)"),
+        rate=positive,
+        max_sim_time=positive,
+        run_info=optional(instance(dict, "a dict")),
+        observe=optional(CALLABLE),
+    )
     def __init__(
         self,
         root: py_trees.behaviour.Behaviour,
@@ -265,21 +286,28 @@ class LogStream:
     """A run's JSON-lines log, written as the run goes: the header now, one line per tick, the result at the
     end. Lines go to a temporary file beside ``path`` that becomes ``path`` when the result is written, so
     ``path`` is only ever a whole log; another run writing the same ``path`` at the same time is refused
-    (:class:`~besman.skills.writer_lock.WriterLock`)."""
+    (:class:`~besman.skills.writer_lock.WriterLock`), and the temporaries of one killed meanwhile are
+    removed. A write that fails (a full disk) removes the temporary and the lock and raises a
+    :class:`~besman.skills.storage.WriteError` naming ``path``."""
 
     def __init__(self, path: str | Path, run_info: dict) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = WriterLock(self.path, "--log").acquire()
-        descriptor, temporary = tempfile.mkstemp(
-            dir=self.path.parent, prefix=f".{self.path.name}.", suffix=".tmp"
-        )
-        self._temporary = Path(temporary)
+        # Named for this log, and no live writer of it but this one: a killed run's, nothing else.
+        remove_temporaries(self.path.parent, of=self.path.name)
+        try:
+            descriptor, self._temporary = open_temporary(self.path)
+        except OSError as error:
+            self._lock.release()
+            raise write_error(self.path, error) from error
         self._file = os.fdopen(descriptor, "w", encoding="utf-8")
         self._line({"schema_version": SCHEMA_VERSION, "kind": "besman-run-log", "run": run_info})
 
     def _line(self, document: dict) -> None:
-        self._file.write(json.dumps(document) + "\n")
+        try:
+            self._file.write(json.dumps(document) + "\n")
+        except OSError as error:
+            self._fail(error)
 
     def write(self, record: dict) -> None:
         self._line(record)
@@ -287,43 +315,49 @@ class LogStream:
     def close(self, result: RunResult) -> Path:
         """Writes the result line and puts the log in place."""
         self._line({"result": asdict(result)})
-        self._file.flush()
-        os.fsync(self._file.fileno())
-        self._file.close()
-        os.chmod(self._temporary, 0o644)
-        os.replace(self._temporary, self.path)
+        try:
+            self._file.flush()
+            os.fsync(self._file.fileno())
+            self._file.close()
+            put_in_place(self._temporary, self.path)
+        except OSError as error:
+            self._fail(error)
         self._release()
         return self.path
 
     def abandon(self) -> None:
         """Drops the log of a run that broke (the error says why); an older log at ``path`` stays."""
-        self._file.close()
+        with contextlib.suppress(OSError):  # the buffer's rest cannot be written on a full disk: dropped
+            self._file.close()
         self._temporary.unlink(missing_ok=True)
         self._release()
+
+    def _fail(self, error: OSError) -> NoReturn:
+        self.abandon()
+        raise write_error(self.path, error) from error
 
     def _release(self) -> None:
         self._lock.release()  # no lock file left beside the log
 
 
-def read_log(path: str | Path) -> tuple[dict, list[dict], dict]:
-    """(header, tick records, result) of a run log; a ``ValueError`` names the file and line of a problem."""
+@checked(path=PATH, max_bytes=optional(COUNT))
+def read_log(path: str | Path, *, max_bytes: int | None = None) -> tuple[dict, list[dict], dict]:
+    """(header, tick records, result) of a run log; a ``ValueError`` names the file and line of a problem.
+    The log is at most ``max_bytes`` (default: ``$BESMAN_MAX_LOG_BYTES``, else 128 MB: :data:`LOG_LIMIT`)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    lines = [line for line in text.splitlines() if line.strip()]
+    data = read_bytes(path, LOG_LIMIT.bytes(max_bytes), what="run log", raise_with=LOG_LIMIT.advice)
     records = []
+    lines = (line for line in io.BytesIO(data) if line.strip())  # one at a time: no second copy of the log
     for number, line in enumerate(lines, 1):
         try:
             records.append(json.loads(line))
-        except json.JSONDecodeError as error:
+        except (json.JSONDecodeError, UnicodeDecodeError) as error:
             raise InputError(f"{path}:{number}: not JSON ({error})") from None
     if not records or records[0].get("kind") != "besman-run-log":
         raise InputError(f"{path}:1: not a besman run log")
     check_schema_version(records[0], SCHEMA_VERSION, f"{path}:1")
     if "result" not in records[-1]:
-        raise InputError(f"{path}:{len(lines)}: the log ends without a result (the run did not finish)")
+        raise InputError(f"{path}:{len(records)}: the log ends without a result (the run did not finish)")
     return records[0], records[1:-1], records[-1]["result"]
 
 

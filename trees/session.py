@@ -29,7 +29,7 @@ import numpy as np
 from py_trees.common import Status
 
 from besman.sim.pick_place import pick_place_bounds
-from besman.sim.viewer import Viewer
+from besman.sim.viewer import Viewer, within
 from besman.trees.runner import Runner, RunResult
 from besman.trees.tabletop import TreeSource, tabletop_run
 from besman.trees.watching import Watch
@@ -88,7 +88,7 @@ class Session:
         self.pause_button.on_click(lambda _: self.pause())
         self.step_button.on_click(lambda _: self.step())
         self.reset_button.on_click(lambda _: self.reset())
-        self.speed.on_update(lambda _: self._watch and setattr(self._watch, "speed", float(self.speed.value)))
+        self.speed.on_update(lambda _: self._watch and setattr(self._watch, "speed", within(self.speed)))
         world = self.runner.executor.world
         self.table, self.shelf = world.surface("table").height, world.surface("shelf").height
         self.gizmos = {"object": self._gizmo("object", self.table), "place": self._gizmo("place", self.shelf)}
@@ -192,7 +192,7 @@ class Session:
 
     def _observe(self, runner: Runner, record: dict) -> None:
         if self._watch is None:
-            self._watch = Watch(self.viewer, float(self.speed.value))
+            self._watch = Watch(self.viewer, within(self.speed))
         self._watch(runner, record)
         with self._lock:
             if self._steps > 0:

@@ -11,21 +11,33 @@ can run a logged run again and compare its statuses.
 from __future__ import annotations
 
 import json
+import os
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
 import py_trees
 
+from besman.robots.robot import ROBOT
 from besman.sim.executor import Executor
 from besman.sim.pick_place import PLACE_TOLERANCE, pick_place_bounds
 from besman.sim.world import tabletop_world
 from besman.skills.errors import InputError
+from besman.skills.validation import PATH, SEED, checked, instance, optional, positive
 from besman.trees.blackboard import set_task_values, task_keys_read
 from besman.trees.files import describe, load_tree, loads_tree
 from besman.trees.runner import Runner, RunResult, read_log, statuses
 from besman.trees.summary import Measured, RunSummary
 
 TreeSource = str | Path | py_trees.behaviour.Behaviour
+# A tabletop run's arguments, checked where tabletop_run or run_on_tabletop is called.
+RUN_ARGUMENTS = {
+    "tree": instance(str | os.PathLike | py_trees.behaviour.Behaviour, "a tree file or a root behaviour"),
+    "values": optional(instance(Mapping, "a mapping of task values")),
+    "seed": optional(SEED),
+    "max_sim_time": positive,
+    "robot": ROBOT,
+}
 
 
 def pick_place_settings(
@@ -48,6 +60,7 @@ def pick_place_settings(
     return settings
 
 
+@checked(**RUN_ARGUMENTS)
 def tabletop_run(
     tree: TreeSource,
     values: dict[str, tuple[float, ...]] | None = None,
@@ -80,6 +93,7 @@ def tabletop_run(
     return Runner(root, Executor(world), max_sim_time=max_sim_time, run_info=run_info), settings
 
 
+@checked(**RUN_ARGUMENTS, log=optional(PATH))
 def run_on_tabletop(
     tree: TreeSource,
     values: dict[str, tuple[float, ...]] | None = None,
@@ -126,14 +140,15 @@ def summary(runner: Runner, result: RunResult) -> RunSummary:
     return RunSummary.of(runner, result, measure(runner))
 
 
-def replay(path: str | Path) -> list[dict[str, str]]:
-    """Runs a logged run again from its header; returns its per-tick statuses (to compare with the log's)."""
+def replay(path: str | Path, *, allow_modules: Iterable[str] = ()) -> list[dict[str, str]]:
+    """Runs a logged run again from its header; returns its per-tick statuses (to compare with the log's).
+    ``allow_modules`` as for :func:`~besman.trees.files.load_tree`."""
     header, _, _ = read_log(path)
     run = header["run"]
     settings = {name: tuple(value) for name, value in run["settings"].items()}
     tree = run["tree"]
     if isinstance(tree, dict):  # a tree built in code, logged in the file format
-        tree = loads_tree(json.dumps({"besman_tree": 1, "root": tree}))
+        tree = loads_tree(json.dumps({"besman_tree": 1, "root": tree}), allow_modules=allow_modules)
     runner, _ = tabletop_run(
         tree, settings, seed=run.get("seed"), max_sim_time=run["max_sim_time"], robot=run.get("robot", "aila")
     )

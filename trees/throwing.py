@@ -23,6 +23,7 @@ from besman.learning.policy_search import WarmStart, make_optimizer, policy_sear
 from besman.sim.motions import MotionStatus
 from besman.sim.throw_execution import ThrowingExecutor
 from besman.skills.errors import InputError
+from besman.skills.validation import SEED
 from besman.trees.base import SimulationBehaviour
 
 
@@ -61,7 +62,8 @@ class AimThrow(SimulationBehaviour):
         if template not in pool:
             raise InputError(f"{name}: the pool has no template {template!r} (has: {', '.join(pool)})")
         self.template = pool[template]
-        self.accept, self.budget, self.seed = accept, budget, seed
+        self.accept, self.budget = accept, budget
+        self.seed = SEED(f"{name}: seed", seed)  # out of range: refused with the file, not mid-run
         self.instantiated: tuple | None = None  # (template, tau) of the last aim, for viewers
         self.rollouts = 0  # simulated throws of the last aim
         self.expected_miss: float | None = None  # m, of the chosen throw in simulation

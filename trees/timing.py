@@ -18,7 +18,8 @@ from py_trees.common import Status
 
 from besman.sim.executor import Executor
 from besman.skills.errors import InputError
-from besman.trees.base import SimulationBehaviour, executor_of
+from besman.skills.validation import checked, text
+from besman.trees.base import BEHAVIOUR, SimulationBehaviour, executor_of
 
 
 class Deadline:
@@ -65,6 +66,7 @@ class Wait(SimulationBehaviour):
 class SimTimeout(py_trees.decorators.Decorator):
     """Fails (and stops) its child once it has run for ``duration`` simulated seconds."""
 
+    @checked(name=text("a behaviour name"), child=BEHAVIOUR)  # the duration: the Deadline's own check
     def __init__(self, name: str, child: py_trees.behaviour.Behaviour, *, duration: float) -> None:
         super().__init__(name=name, child=child)
         self.deadline = Deadline(name, duration)

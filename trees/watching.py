@@ -19,7 +19,7 @@ from py_trees.common import Status
 
 from besman.sim.executor import Executor
 from besman.sim.overlays import template_spread
-from besman.sim.viewer import Viewer
+from besman.sim.viewer import Viewer, within
 from besman.sim.world import tabletop_world
 from besman.skills.errors import InputError
 from besman.trees.base import RoleBehaviour
@@ -149,7 +149,7 @@ class Replay:
             self.slider = gui.add_slider("tick", min=0, max=len(self.records) - 1, step=1, initial_value=0)
             self.play = gui.add_checkbox("play", initial_value=False)
         self.viewer.set_nodes(self.nodes, self._describe)
-        self.slider.on_update(lambda _: self.show(int(self.slider.value)))
+        self.slider.on_update(lambda _: self.show(int(within(self.slider))))
         self._closed = threading.Event()
         self._player = threading.Thread(target=self._play, daemon=True)
         self._player.start()

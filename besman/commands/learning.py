@@ -55,7 +55,13 @@ def register(commands) -> None:
     )
     learn.add_argument("--budget", type=COUNT, default=48, help="rollouts per training task (default 48)")
     learn.add_argument("--seed", type=SEED, default=0)
-    learn.add_argument("--backend", choices=("threads", "ray"), default="threads")
+    learn.add_argument(
+        "--backend",
+        choices=("threads", "ray"),
+        default="threads",
+        help="where rollouts run: threads (local cores, default) or ray (a local Ray that listens on "
+        "127.0.0.1 only, or the cluster that RAY_ADDRESS names; see docs/learning.md)",
+    )
     learn.add_argument("--blocks", type=COUNT, default=6, help="building blocks to cluster into (default 6)")
     learn.add_argument(
         "--examples", nargs="+", default=[], metavar="FILE", help="annotated recordings: label by them (1-NN)"

@@ -72,6 +72,12 @@ def register(commands) -> None:
         "--quick", action="store_true", help="a small run (3 x 3 grid, K up to 4; about a minute)"
     )
     throwing.add_argument("--seeds", type=COUNT, help="independent repetitions (default 3; 1 with --quick)")
-    throwing.add_argument("--backend", choices=("threads", "ray"), default="threads")
+    throwing.add_argument(
+        "--backend",
+        choices=("threads", "ray"),
+        default="threads",
+        help="where rollouts run: threads (local cores, default) or ray (a local Ray that listens on "
+        "127.0.0.1 only, or the cluster that RAY_ADDRESS names; see docs/learning.md)",
+    )
     throwing.add_argument("--out", required=True, help="the results directory (an interrupted run resumes)")
     throwing.set_defaults(handler=_experiment_throwing)

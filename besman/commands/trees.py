@@ -11,7 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from besman.commands.options import SEED
-from besman.commands.viewing import serve, tabletop, view_options
+from besman.commands.viewing import check_view, serve, server_settings, tabletop, view_options
 from besman.skills.errors import InputError
 
 
@@ -20,7 +20,7 @@ def _tree_show(args: argparse.Namespace) -> int:
 
     from besman.trees import load_tree
 
-    print(py_trees.display.unicode_tree(load_tree(args.file)))
+    print(py_trees.display.unicode_tree(load_tree(args.file, allow_modules=args.allow_module)))
     return 0
 
 
@@ -32,7 +32,7 @@ def _tree_render(args: argparse.Namespace) -> int:
 
     formats = {".svg": "svg", ".png": "png", ".dot": None}  # .dot: the DOT source itself, no Graphviz
     out = check_output(args.out, option="--out", suffixes=tuple(formats), inputs=(args.file,))
-    graph = py_trees.display.dot_tree(load_tree(args.file))
+    graph = py_trees.display.dot_tree(load_tree(args.file, allow_modules=args.allow_module))
     kind = formats[out.suffix.lower()]
     if kind is None:
         data = graph.to_string().encode("utf-8")
@@ -105,39 +105,43 @@ def _tree_schema(args: argparse.Namespace) -> int:
 
 
 def _tree_check(args: argparse.Namespace) -> int:
-    from besman.trees import load_tree
+    from besman.trees import check_tree
     from besman.trees.files import TreeFileError
 
     problems = 0
     for file in args.files:
         try:
-            load_tree(file)
+            unimported = check_tree(file, allow_modules=args.allow_module)
         except TreeFileError as error:
             problems += 1
             print(str(error))
         else:
-            print(f"{file}: ok")
+            later = f" ({', '.join(unimported)}: allowed, imported when the tree runs)" if unimported else ""
+            print(f"{file}: ok{later}")
     return 1 if problems else 0
 
 
 def _run(args: argparse.Namespace) -> int:
     from besman.skills.storage import check_output
 
+    check_view(args)
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,))
     tree = args.file
-    if args.pool is not None:  # the file's pools replaced: the tree is built here and logged as built
+    if args.pool is not None or args.allow_module:  # pools replaced, modules imported: logged as built
         from besman.trees import load_tree
 
-        tree = load_tree(args.file, pool=args.pool)
+        tree = load_tree(args.file, pool=args.pool, allow_modules=args.allow_module)
     summary, viewers = tabletop(args, tree, _parse_sets(args.set), args.log)
-    if args.pool is not None:
-        summary = replace(summary, tree=f"{Path(args.file).resolve()} (--pool {Path(args.pool).resolve()})")
+    if tree is not args.file:
+        replaced = f" (--pool {Path(args.pool).resolve()})" if args.pool is not None else ""
+        summary = replace(summary, tree=f"{Path(args.file).resolve()}{replaced}")
     _print_summary(summary, args.json)
     return serve(viewers, 0 if summary.success else 1)
 
 
 def _demo(args: argparse.Namespace) -> int:
+    check_view(args)
     from besman.skills.storage import check_output
     from besman.trees.gallery import DEMOS, demo
 
@@ -189,7 +193,7 @@ def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple:
     from besman.trees.watching import Watch
 
     prepared = prepare_demo(chosen.name, args.seed, options)
-    viewer = Viewer(prepared.runner.executor.world.model, host=args.host, port=args.port)
+    viewer = Viewer(prepared.runner.executor.world.model, **server_settings(args))
     print(f"viewer: {viewer.url} (the run goes at {args.speed:g}x real time)", file=sys.stderr, flush=True)
     prepared.runner.observe = observers(prepared.runner.observe, Watch(viewer, args.speed))
     try:
@@ -200,16 +204,29 @@ def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple:
     return prepared.judge(result), [viewer]
 
 
+def _allow_module_option(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "--allow-module",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="a module whose attributes the tree may name as MODULE:NAME templates and pools (repeatable); "
+        "imported when the tree is built, never by tree check",
+    )
+
+
 def register(commands) -> None:
     """Adds this module's commands to the parser's subcommands."""
     tree = commands.add_parser("tree", help="show or render a tree file")
     tree_commands = tree.add_subparsers(dest="tree_command", metavar="ACTION", required=True)
     tree_show = tree_commands.add_parser("show", help="print the tree")
     tree_show.add_argument("file")
+    _allow_module_option(tree_show)
     tree_show.set_defaults(handler=_tree_show)
     tree_render = tree_commands.add_parser("render", help="draw the tree with Graphviz")
     tree_render.add_argument("file")
     tree_render.add_argument("--out", required=True, help="output .svg, .png or .dot")
+    _allow_module_option(tree_render)
     tree_render.set_defaults(handler=_tree_render)
     tree_nodes = tree_commands.add_parser("nodes", help="the node types of tree files and their parameters")
     tree_nodes.add_argument("name", nargs="?", help="one node type, with its parameters and blackboard roles")
@@ -222,6 +239,7 @@ def register(commands) -> None:
     tree_schema.set_defaults(handler=_tree_schema)
     tree_check = tree_commands.add_parser("check", help="load and validate tree files; one line per file")
     tree_check.add_argument("files", nargs="+", metavar="FILE")
+    _allow_module_option(tree_check)
     tree_check.set_defaults(handler=_tree_check)
 
     run = commands.add_parser("run", help="run a tree file on a robot's tabletop (default: AILA's)")
@@ -242,6 +260,7 @@ def register(commands) -> None:
     run.add_argument(
         "--pool", default=None, help="a skill template pool that replaces the pools the tree names"
     )
+    _allow_module_option(run)
     view_options(run)
     run.set_defaults(handler=_run)
 

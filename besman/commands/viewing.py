@@ -1,5 +1,7 @@
 """The browser viewer from the command line: `--view` for runs (a session that stays open after the run)
-and `besman view` (a run log replayed, a throwing template).
+and `besman view` (a run log replayed, a throwing template). The viewer serves this machine alone unless
+``--host`` says otherwise (then with a warning), and its websocket answers only its own page and the
+``--allow-origin`` pages (:mod:`besman.sim.serving`).
 """
 
 from __future__ import annotations
@@ -9,17 +11,48 @@ import sys
 import time
 
 from besman.commands.options import PORT, positive
+from besman.hosts import host_addresses, origins
 from besman.skills.errors import InputError
+
+
+def server_options(group) -> None:
+    """--host, --port and --allow-origin: where the viewer serves and which pages may use it."""
+    group.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="the viewer's address (default 127.0.0.1: this machine alone); another, e.g. 0.0.0.0 (every "
+        "address of this machine), serves the network with no authentication: a warning says so",
+    )
+    group.add_argument("--port", type=PORT, default=8080, help="the viewer's port (busy: the next free one)")
+    group.add_argument(
+        "--allow-origin",
+        action="append",
+        default=[],
+        metavar="URL",
+        help="a page that may use the viewer besides its own, e.g. https://viewer.example.org for a proxy in "
+        "front of it (repeatable); websockets from any other page are refused",
+    )
+
+
+def server_settings(args: argparse.Namespace) -> dict:
+    """The viewer's keyword arguments from :func:`server_options`, checked (an address that is not this
+    machine's, an origin that is none, fails at once, in one line)."""
+    host_addresses(args.host)
+    origins(args.allow_origin)
+    return {"host": args.host, "port": args.port, "allowed_origins": args.allow_origin}
+
+
+def check_view(args: argparse.Namespace) -> None:
+    """With --view, the viewer's host checked before any work."""
+    if args.view:
+        server_settings(args)
 
 
 def view_options(command: argparse.ArgumentParser) -> None:
     """The options of a command that runs a tree to watch it in the browser (``--view``)."""
     view = command.add_argument_group("browser viewer")
     view.add_argument("--view", action="store_true", help="watch the run in the browser (viser)")
-    view.add_argument(
-        "--host", default="127.0.0.1", help="the viewer's address (default 127.0.0.1: this machine)"
-    )
-    view.add_argument("--port", type=PORT, default=8080, help="the viewer's port (busy: the next free one)")
+    server_options(view)
     view.add_argument("--speed", type=positive, default=1.0, help="the run's pace with --view, x real time")
 
 
@@ -38,7 +71,7 @@ def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple:
         values,
         seed=seed,
         speed=args.speed,
-        viewer_options={"host": args.host, "port": args.port},
+        viewer_options=server_settings(args),
         robot=args.robot,
     )
     print(
@@ -68,7 +101,7 @@ def serve(viewers: list, code: int) -> int:
 
 
 def _view(args: argparse.Namespace) -> int:
-    options = {"host": args.host, "port": args.port}
+    options = server_settings(args)
     if args.throw:
         return _view_throw(args, options)
     from besman.trees.watching import Replay
@@ -123,8 +156,5 @@ def register(commands) -> None:
     )
     view.add_argument("--template", default="throw", help="the throwing template's name (default: throw)")
     view.add_argument("--target", help="X,Y on the floor (default: the middle of the template's task box)")
-    view.add_argument(
-        "--host", default="127.0.0.1", help="the viewer's address (default 127.0.0.1: this machine)"
-    )
-    view.add_argument("--port", type=PORT, default=8080, help="the viewer's port (busy: the next free one)")
+    server_options(view)
     view.set_defaults(handler=_view)
