@@ -27,6 +27,9 @@ def host_addresses(host: str) -> list[str]:
     host and the reason if it does not resolve or names an address that is not this machine's."""
     if not isinstance(host, str) or not host.strip():
         raise InputError(f"the viewer's host must be an address or name of this machine, got {host!r}")
+    mapped = _mapped(host)
+    if mapped is not None:  # viser's server does not come up on one (it hung)
+        raise InputError(f"host {host}: an IPv4 address written as IPv6; give it as {mapped}")
     try:
         found = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)
     except (OSError, UnicodeError) as error:
@@ -43,6 +46,15 @@ def host_addresses(host: str) -> list[str]:
                 raise InputError(f"host {host}{where}: {reason} ({_reason(error)})") from None
         addresses.append(address[0])
     return addresses
+
+
+def _mapped(host: str) -> str | None:
+    """The IPv4 address that ``host`` writes as an IPv4-mapped IPv6 address (``::ffff:127.0.0.1``), if so."""
+    try:
+        mapped = getattr(ipaddress.ip_address(host.strip("[]")), "ipv4_mapped", None)
+    except ValueError:
+        return None
+    return None if mapped is None else str(mapped)
 
 
 def _reason(error: BaseException) -> str:

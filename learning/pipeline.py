@@ -242,25 +242,26 @@ class _Run:
             raise LearnError(f"{out}: the output is a file, not a pool folder")
         resume = False
         if record_path.is_file():
-            try:
-                previous = read_json(record_path, LearnError)
-            except LearnError as error:
-                if not force:
-                    raise LearnError(f"{error} (--force starts over)") from None
-                previous = None
-            if previous is not None and previous.get("robot") != self.settings.robot and not force:
+            previous = read_json(record_path, LearnError)
+            if previous.get("kind") != KIND:  # a record besman did not write: not replaced, even with --force
+                raise LearnError(
+                    f"{record_path}: not the record of a besman learn, so {out} is not a pool besman can "
+                    "resume or replace; remove that file or choose another --out"
+                )
+            if previous.get("robot") != self.settings.robot and not force:
                 raise LearnError(
                     f"{out}: the pool was learned for robot {previous.get('robot')!r}, not "
                     f"{self.settings.robot!r} (--force replaces it)"
                 )
-            ours, resume = previous is not None and previous.get("kind") == KIND, previous == self.record
+            ours, resume = True, previous == self.record
             if not resume:
                 if not force:
                     raise LearnError(
                         f"{out}: the pool was learned from other recordings or settings (see {record_path}); "
                         "--force starts over"
                     )
-                shutil.rmtree(self.work)
+                for stage in POOL_FOLDERS[1:]:  # the stale caches; anything else in work/ stays
+                    shutil.rmtree(out / stage, ignore_errors=True)
         else:
             # Files, not folders or besman's temporaries: a learn killed before its record leaves those.
             ours = not holds_files(out)

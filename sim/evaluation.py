@@ -185,9 +185,19 @@ def _start_local_ray(ray) -> None:
     _reapers.append(reaper.start(mark))
     os.environ[reaper.OWNER] = mark  # inherited by every process Ray starts
     sigterm = signal.getsignal(signal.SIGTERM)
-    _init_ray(ray)
+    terminated = False
+    try:
+        _init_ray(ray)
+    except SystemExit as stop:  # Ray's own SIGTERM handler, in place while Ray starts
+        if stop.code != signal.SIGTERM:
+            raise
+        terminated = True
     if sigterm is not None and threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, sigterm)  # besman's (handled as Ctrl-C), not Ray's sys.exit
+        if terminated:  # the SIGTERM Ray took, handled now as besman handles it
+            os.kill(os.getpid(), signal.SIGTERM)
+    if terminated:
+        raise KeyboardInterrupt  # where no handler of besman's was there to restore
 
 
 def _init_ray(ray) -> None:
@@ -203,6 +213,9 @@ def _init_ray(ray) -> None:
     constants = importlib.import_module("ray._private.ray_constants")
     saved = os.environ.get(RAY_ONE_MACHINE), constants.ENABLE_RAY_CLUSTER
     os.environ[RAY_ONE_MACHINE], constants.ENABLE_RAY_CLUSTER = "0", False
+    # This process's signals are besman's: Ray's C++ failure handler would take a SIGTERM that arrives while
+    # Ray starts (a stack dump, then an abort at exit) instead of besman's clean stop.
+    constants.RAY_DISABLE_FAILURE_SIGNAL_HANDLER = True
     try:
         ray.init(
             address="local",

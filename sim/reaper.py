@@ -3,12 +3,15 @@
 Ray's workers, raylet and GCS share the fate of the driver that started them, but its dashboard and
 runtime-env agents outlive a ``kill -9`` of the driver by a minute or more (they try to report the raylet's
 death to the dead GCS first). So when :func:`besman.sim.evaluation.evaluate_on_ray` starts Ray itself, it
-first starts this reaper with a pipe to it and marks its own environment (``BESMAN_RAY_OWNER``), which
-Ray's raylet, GCS and workers inherit; the agents do not (the raylet starts them with an environment of its
-own), but name their raylet (``RAY_RAYLET_PID``). While the pipe is open, the reaper notes the marked
-processes (after 1, 3, 7... s, then every 30 s); when it closes - the driver ended, however it ended - it
-kills every process that carries the mark or names one of them as its raylet (found through ``/proc``:
-Linux).
+first starts this reaper with a pipe to it and marks its own environment (``BESMAN_RAY_OWNER``), which Ray's
+raylet, GCS and workers inherit; workers also name their raylet (``RAY_RAYLET_PID``). The agents cannot be
+found that way: the raylet starts them, and the process title they take (``ray::DashboardAgent``) can blank
+the environment that ``/proc`` shows (it often does with Ray 2.60). So while the pipe is open, the reaper
+notes the marked processes and every descendant of them (the agents are the raylet's children), each with its
+start time (after 1, 3, 7... s, then every 30 s); when it closes - the driver ended, however it ended - it
+kills every noted process still alive with the same start time (a pid used again by another process is
+spared), and every process that carries the mark, names one of the marked as its raylet or descends from them
+then (found through ``/proc``: Linux).
 """
 
 from __future__ import annotations
@@ -57,13 +60,45 @@ def marked(mark: str, raylets: set[int] = frozenset()) -> set[int]:
     return {pid for pid, environment in environments().items() if entries.intersection(environment)}
 
 
+def processes() -> dict[int, tuple[int, int]]:
+    """Every process's parent pid and start time (clock ticks after boot: with the pid, one process), by
+    pid."""
+    found = {}
+    for folder in Path("/proc").glob("[0-9]*"):
+        try:
+            fields = (folder / "stat").read_text().rsplit(")", 1)[1].split()  # the name may hold ")"
+            found[int(folder.name)] = int(fields[1]), int(fields[19])  # fields 4 and 22 of stat
+        except (OSError, IndexError, ValueError):
+            continue  # ended meanwhile
+    return found
+
+
+def family(pids: set[int], noted: dict[int, int]) -> dict[int, int]:
+    """The live processes among ``pids``, those of ``noted`` (pid: start time) that started when noted (not
+    another process with the pid), and every descendant of them, with their start times."""
+    table = processes()
+    children: dict[int, list[int]] = {}
+    for pid, (parent, _) in table.items():
+        children.setdefault(parent, []).append(pid)
+    todo = [pid for pid in pids if pid in table]
+    todo += [pid for pid, start in noted.items() if pid in table and table[pid][1] == start]
+    found = {}
+    while todo:
+        pid = todo.pop()
+        if pid not in found:
+            found[pid] = table[pid][1]
+            todo += children.get(pid, [])  # the raylet's agents, whose environment /proc no longer shows
+    return found
+
+
 def main() -> None:
-    mark, seen, wait = sys.argv[1], set(), 1.0
+    mark, seen, noted, wait = sys.argv[1], set(), {}, 1.0
     while not select.select([sys.stdin], [], [], wait)[0] or sys.stdin.buffer.read1(1):
-        seen |= marked(mark)  # the pipe is open: the driver lives
+        now = marked(mark)  # the pipe is open: the driver lives
+        seen, noted = seen | now, noted | family(now, noted)
         wait = min(2 * wait, 30.0)  # Ray starts its raylet at once: look often at first, then seldom
     for _ in range(3):  # Ray may still be starting a process as the driver dies
-        for pid in marked(mark, seen) - {os.getpid()}:
+        for pid in family(marked(mark, seen), noted).keys() - {os.getpid()}:
             with contextlib.suppress(ProcessLookupError):  # ended meanwhile
                 os.kill(pid, signal.SIGKILL)
         time.sleep(0.5)

@@ -73,6 +73,8 @@ class OriginCheck:
 
     def refusal(self, headers) -> str | None:
         """Why a handshake with these request headers is refused; None if it is accepted."""
+        if len(headers.get_all("Origin")) > 1 or len(headers.get_all("Host")) > 1:
+            return "more than one Origin or Host header"  # no browser sends that: a forged handshake
         sent = headers.get("Origin")
         if sent is None or origin(sent) in self.allowed:
             return None

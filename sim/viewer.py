@@ -20,7 +20,6 @@ import contextlib
 import html
 import io
 import math
-import sys
 import time
 from collections.abc import Callable, Iterable
 
@@ -208,5 +207,5 @@ class Viewer:
             handle.content = content
 
     def close(self) -> None:
-        with contextlib.redirect_stdout(sys.stderr):
+        with contextlib.redirect_stdout(io.StringIO()):  # viser's "(viser) Server stopped": not besman's word
             self.server.stop()

@@ -43,10 +43,12 @@ def open_file(
     try:
         _check(descriptor, os.fstat, limit, what, error, raise_with, path)
         os.set_blocking(descriptor, True)
-        return os.fdopen(descriptor, "rb")
     except BaseException:
         os.close(descriptor)
         raise
+    # Outside the try: once the file object owns the descriptor, closing it is the object's (a Ctrl-C landing
+    # in fdopen would otherwise close it twice, maybe another thread's new file).
+    return os.fdopen(descriptor, "rb")
 
 
 def read_bytes(
@@ -75,7 +77,7 @@ class Limit:
         text = os.environ.get(self.variable, "").strip()
         if not text:
             return self.default
-        if not text.isdigit() or int(text) < 1:
+        if not (text.isascii() and text.isdecimal()) or int(text) < 1:
             raise InputError(f"{self.variable}={text!r}: expected a number of bytes (a whole number above 0)")
         return int(text)
 

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from besman.skills.errors import BesmanError, InputError
-from besman.skills.reading import read_bytes
+from besman.skills.reading import KINDS, open_file, read_bytes
 
 # Bounds of the files besman writes and reads back (far above what it writes: a pool manifest or primitive
 # is about 20 kB, the throwing experiment's results.json 150 kB, an entry's or a stage's arrays 16 kB).
@@ -122,12 +122,18 @@ def _is_own_file(path: Path) -> bool:
 
 
 def check_output(
-    path: str | Path, *, option: str, suffixes: tuple[str, ...] = (), inputs: tuple[str | Path, ...] = ()
+    path: str | Path,
+    *,
+    option: str,
+    suffixes: tuple[str, ...] = (),
+    inputs: tuple[str | Path, ...] = (),
+    kind: str | None = None,
 ) -> Path:
     """``path`` as a Path once it is known to be writable as an output named ``option`` (e.g. "--plot"):
     with one of ``suffixes`` (if given), not a directory, in a writable folder (or one that can be made),
-    and none of the command's ``inputs`` (an output never replaces what the command reads). Checked before
-    any work, so that a long computation is not lost at the end."""
+    none of the command's ``inputs`` (an output never replaces what the command reads), and replaceable
+    (:func:`check_replaceable`; ``kind``: the header an existing file must have). Checked before any work,
+    so that a long computation is not lost at the end."""
     path = Path(path)
     if path.is_dir():
         raise InputError(f"{option} {path}: a directory; give a file name")
@@ -136,6 +142,7 @@ def check_output(
     for source in inputs:
         if Path(source).exists() and path.exists() and os.path.samefile(source, path):
             raise InputError(f"{option} {path}: that is an input of this command; it would be overwritten")
+    check_replaceable(path, option, kind)
     folder = path.absolute().parent  # missing folders are made when the file is written
     while not folder.exists():
         folder = folder.parent
@@ -144,6 +151,36 @@ def check_output(
     if not os.access(folder, os.W_OK):
         raise InputError(f"{option} {path}: the folder {str(folder)!r} is not writable")
     return path
+
+
+def check_replaceable(path: str | Path, option: str, kind: str | None = None) -> None:
+    """Refuses to replace what is at ``path`` unless it is nothing or a regular file (a symbolic link, a
+    FIFO, a device or a socket is the user's, and the rename of a whole file would destroy it); with
+    ``kind``, the regular file too unless its first line is a JSON object of that ``kind`` (e.g.
+    "besman-run-log": an earlier output of the same kind, named in messages with spaces for hyphens)."""
+    path = Path(path)
+    try:
+        mode = path.lstat().st_mode
+    except (FileNotFoundError, NotADirectoryError):  # nothing there (a folder on the way a file: named later)
+        return
+    if stat.S_ISDIR(mode):
+        return  # check_output names it
+    if not stat.S_ISREG(mode):
+        what = "a symbolic link" if stat.S_ISLNK(mode) else KINDS.get(stat.S_IFMT(mode), "no regular file")
+        raise InputError(f"{option} {path}: {what}, not a regular file; remove it or choose another name")
+    if kind is None:
+        return
+    with open_file(path, 1 << 62, what=kind.replace("-", " ")) as file:  # only the first line is read
+        first = file.readline(JSON_BYTES)
+    try:
+        header = json.loads(first.decode("utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        header = None
+    if not isinstance(header, dict) or header.get("kind") != kind:
+        raise InputError(
+            f"{option} {path}: an existing file that is not a {kind.replace('-', ' ')}; remove it or choose "
+            "another name"
+        )
 
 
 def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:

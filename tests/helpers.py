@@ -114,6 +114,48 @@ def processes_marked(token: str) -> list[int]:
     return found
 
 
+def process_tree(root: int) -> dict[int, int]:
+    """``root`` and its live descendants (zombies excluded), each with its start time (field 22 of
+    ``/proc/PID/stat``, which tells it from a later process with its pid): found by parent links, not by
+    environment (a process that retitles itself may blank the environment that ``/proc`` shows)."""
+    table = {}
+    for folder in Path("/proc").glob("[0-9]*"):
+        try:
+            fields = (folder / "stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue  # ended meanwhile
+        if fields[0] != "Z":
+            table[int(folder.name)] = int(fields[1]), int(fields[19])
+    tree, todo = {}, [root]
+    while todo:
+        pid = todo.pop()
+        if pid in table and pid not in tree:
+            tree[pid] = table[pid][1]
+            todo += [child for child, (parent, _) in table.items() if parent == pid]
+    return tree
+
+
+def command_line(pid: int) -> str:
+    """The command line of a process (a retitled one's title), "" once it ended."""
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+    except OSError:
+        return ""
+
+
+def alive(processes: dict[int, int]) -> list[int]:
+    """Those of ``processes`` (pid: start time, :func:`process_tree`) alive still (zombies excluded)."""
+    found = []
+    for pid, start in processes.items():
+        try:
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue  # ended
+        if fields[0] != "Z" and int(fields[19]) == start:
+            found.append(pid)
+    return found
+
+
 def start_marked(command: list[str]) -> tuple[subprocess.Popen, str]:
     """``command`` started with a token in its environment (:func:`processes_marked`), output discarded."""
     token = uuid.uuid4().hex
@@ -126,12 +168,15 @@ def start_marked(command: list[str]) -> tuple[subprocess.Popen, str]:
     return process, token
 
 
-def assert_no_strays(token: str, seconds: float = 5.0) -> None:
-    """No process of a killed command is alive ``seconds`` after the kill."""
+def assert_no_strays(token: str, seconds: float = 5.0, tree: dict[int, int] | None = None) -> None:
+    """No process of a killed command is alive ``seconds`` after the kill: none marked with ``token``, nor
+    any of ``tree`` (its :func:`process_tree` just before the kill)."""
     deadline = time.monotonic() + seconds
-    while processes_marked(token) and time.monotonic() < deadline:
+    while (processes_marked(token) or alive(tree or {})) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert processes_marked(token) == [], "processes outlived the command that started them"
+    left = {pid: command_line(pid)[:60] for pid in alive(tree or {})}
+    assert left == {}, f"processes outlived the command that started them: {left}"
 
 
 def sigint_by_default() -> None:
@@ -150,7 +195,9 @@ def kill_and_resume(
     that the run makes progress and the kills fall all over it; the others within 0.2-3 s of their start
     (while it starts, reads back its finished stages, or writes). After every kill: every file under
     ``out`` (but the temporaries of atomic writes) is whole, and no process the command started outlives
-    it by more than 5 s. Returns what each kill followed (the newest file then)."""
+    it by more than 5 s. A run that ends on its own before its kill, once at least half the kills fell, ends
+    the kills (what was left of it took less than the wait). Returns what each kill followed (the newest
+    file then)."""
     rng = np.random.default_rng(seed)
 
     def written() -> list[Path]:
@@ -168,6 +215,8 @@ def kill_and_resume(
                 time.sleep(0.05)
             time.sleep(rng.uniform(0.0, jitter))
         if process.poll() is not None:
+            if process.returncode == 0 and len(interrupted) >= kills // 2:
+                break  # late in the run what is left can end before the kill falls: nothing left to kill
             raise AssertionError(f"{' '.join(command)} ended (code {process.returncode}) before its kill")
         os.kill(process.pid, signal.SIGKILL)
         process.wait()
@@ -195,10 +244,13 @@ def differing_files(folder: Path, other: Path, ignore: tuple[str, ...] = ()) -> 
     return sorted(name for name in names if first.get(name) != second.get(name))
 
 
-def serve_then_interrupt(argv: list, timeout: float = 120.0, **popen) -> tuple[str, str]:
+def serve_then_interrupt(
+    argv: list, timeout: float = 120.0, signum: int = signal.SIGINT, **popen
+) -> tuple[str, str]:
     """Runs a command that ends by serving the browser viewer (``the viewer stays at URL until Ctrl-C``):
-    the page at that address answers, then Ctrl-C ends the command with exit 0 and no traceback. Returns its
-    stdout and stderr."""
+    the page at that address answers, then Ctrl-C (or ``signum``: SIGTERM) ends the command as it ends every
+    command: exit 130 (143), its last line ``besman: interrupted`` (``terminated``), no traceback and no
+    viser "Server stopped". Returns its stdout and stderr."""
     import re
     import subprocess
     import urllib.request
@@ -223,9 +275,14 @@ def serve_then_interrupt(argv: list, timeout: float = 120.0, **popen) -> tuple[s
         url = re.search(r"http://127\.0\.0\.1:\d+", line).group(0)  # bound to this machine
         with urllib.request.urlopen(url, timeout=30) as page:
             assert page.status == 200 and b"<html" in page.read().lower(), url
-        process.send_signal(signal.SIGINT)
+        process.send_signal(signum)
         out, err = process.communicate(timeout=timeout)  # a hang guard, generous for a loaded machine
-        assert process.returncode == 0 and "Traceback" not in err, (argv, err[-3000:])
+        code, line = (143, "terminated") if signum == signal.SIGTERM else (130, "interrupted")
+        assert process.returncode == code and err.splitlines()[-1:] == [f"besman: {line}"], (
+            argv,
+            err[-3000:],
+        )
+        assert "Traceback" not in err and "Server stopped" not in err, (argv, err[-3000:])
         return out, "".join(lines) + err
     finally:
         if process.poll() is None:

@@ -35,6 +35,8 @@ USERS = {".x.tmp": b"mine", "notes/.x.tmp": b"mine too", "work/.y.tmp": b"and mi
 # folder of the user's (kept: not a folder besman writes).
 DEAD_WRITERS = (".results.json.besman-k1ll3d00.tmp", "work/.config.json.besman-k1ll3d00.tmp")
 MARKED_IN_USERS = {"notes/.a.json.besman-k1ll3d00.tmp": b"not in besman's folders"}
+# An earlier run's log (its header and result): what a new run's --log may replace.
+OLDER_LOG = '{"schema_version": 1, "kind": "besman-run-log", "run": {}}\n{"result": {"status": "SUCCESS"}}\n'
 
 
 def _place(folder: Path, files: dict[str, bytes]) -> None:
@@ -92,6 +94,92 @@ def test_a_run_log_removes_only_the_temporaries_of_its_own_file(tmp_path):
     _place(tmp_path, {**others, ".run.jsonl.besman-k1ll3d00.tmp": b"half a log"})
     LogStream(tmp_path / "run.jsonl", {}).abandon()
     assert snapshot(tmp_path) == others
+
+
+# -- an output replaces only what besman wrote --------------------------------------------------------------
+
+
+def _specials(folder: Path, name: str) -> dict[str, Path]:
+    """``name`` in three folders of ``folder``: a user's own file, a FIFO, a link to a user's file."""
+    places = {kind: folder / kind / name for kind in ("file", "fifo", "link")}
+    for path in places.values():
+        path.parent.mkdir()
+    places["file"].write_text('{"my": "data"}\n')
+    os.mkfifo(places["fifo"])
+    (folder / "link" / "target").write_text('{"my": "data"}\n')
+    places["link"].symlink_to(folder / "link" / "target")
+    return places
+
+
+LOG_REFUSALS = {
+    "file": "an existing file that is not a besman run log; remove it or choose another name",
+    "fifo": "a FIFO, not a regular file; remove it or choose another name",
+    "link": "a symbolic link, not a regular file; remove it or choose another name",
+}
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [("run", str(TREES / "grasp_then_place.yaml"), "--log", "{path}"), ("demo", "--log", "{path}")],
+    ids=["run", "demo"],
+)
+def test_a_log_refuses_what_is_not_an_earlier_run_log_and_leaves_it_as_it_was(tmp_path, capsys, argv):
+    """A user's own file, a FIFO and a symbolic link at --log: one line naming it, exit 2, before any work,
+    and each left as it was (the FIFO still a FIFO, the link still a link to the user's file)."""
+    places = _specials(tmp_path, "mine.jsonl")
+    before = snapshot(tmp_path)
+    for kind, path in places.items():
+        code, _, err = run_cli(capsys, *(arg.format(path=path) for arg in argv))
+        assert code == 2 and err.splitlines() == [f"besman: error: --log {path}: {LOG_REFUSALS[kind]}"], err
+    assert snapshot(tmp_path) == before
+    assert places["fifo"].is_fifo() and places["link"].is_symlink()
+    assert sorted(p.name for p in places["link"].parent.iterdir()) == ["mine.jsonl", "target"]  # no lock left
+
+
+def test_a_log_stream_refuses_what_is_not_an_earlier_run_log(tmp_path):
+    """The API's log (:class:`LogStream`, what ``Runner.run(log=...)`` writes) refuses them alike."""
+    from besman.skills.errors import InputError
+    from besman.trees.runner import LogStream
+
+    places = _specials(tmp_path, "run.jsonl")
+    before = snapshot(tmp_path)
+    for kind, path in places.items():
+        with pytest.raises(InputError, match=re.escape(f"--log {path}: {LOG_REFUSALS[kind]}")):
+            LogStream(path, {})
+    assert snapshot(tmp_path) == before and places["fifo"].is_fifo() and places["link"].is_symlink()
+
+
+@pytest.mark.parametrize(
+    ("argv", "option"),
+    [
+        (("segment", str(DEMOS / "subject1_run1.tsv"), "--plot", "{path}"), "--plot"),
+        (("tree", "render", str(TREES / "grasp.yaml"), "--out", "{path}"), "--out"),
+    ],
+    ids=["plot", "out"],
+)
+def test_every_output_option_refuses_a_fifo_or_a_link(tmp_path, capsys, argv, option):
+    """--plot and --out too: a FIFO or a symbolic link is refused by name, before any work, and left as it
+    was."""
+    suffix = ".png" if option == "--plot" else ".dot"
+    places = _specials(tmp_path, f"out{suffix}")
+    del places["file"]
+    before = snapshot(tmp_path)
+    for kind, path in places.items():
+        code, _, err = run_cli(capsys, *(arg.format(path=path) for arg in argv))
+        assert code == 2 and err.splitlines() == [f"besman: error: {option} {path}: {LOG_REFUSALS[kind]}"], (
+            err
+        )
+    assert snapshot(tmp_path) == before and places["fifo"].is_fifo() and places["link"].is_symlink()
+
+
+def test_a_log_replaces_an_earlier_run_log(tmp_path, capsys):
+    log = tmp_path / "run.jsonl"
+    log.write_text(OLDER_LOG)
+    code, _, err = run_cli(capsys, "demo", "--log", str(log))
+    assert code == 0, err
+    header, records, result = read_log(log)
+    assert header["run"] and records and result["status"] == "SUCCESS"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.jsonl"]
 
 
 # -- SIGTERM as Ctrl-C --------------------------------------------------------------------------------------
@@ -186,7 +274,7 @@ def test_a_log_that_cannot_be_written_is_named_and_leaves_nothing_behind(small_s
     and the older log at that path as it was."""
     folder, reason, limit = small_space
     log = folder / "run.jsonl"
-    log.write_text("an older log\n")
+    log.write_text(OLDER_LOG)
     result = subprocess.run(
         [str(BESMAN), "run", str(TREES / "grasp_then_place.yaml"), "--seed", "1", "--log", str(log)],
         capture_output=True,
@@ -195,7 +283,7 @@ def test_a_log_that_cannot_be_written_is_named_and_leaves_nothing_behind(small_s
     )
     assert result.returncode == 2, result.stderr
     assert result.stderr.splitlines() == [f"besman: error: {log}: cannot write it ({reason})"]
-    assert snapshot(folder) == {"run.jsonl": b"an older log\n"}
+    assert snapshot(folder) == {"run.jsonl": OLDER_LOG.encode()}
 
 
 def test_a_file_that_cannot_be_written_is_named_and_leaves_nothing_behind(small_space):

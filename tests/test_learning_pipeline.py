@@ -25,8 +25,10 @@ import numpy as np
 import pytest
 from helpers import (
     assert_no_strays,
+    command_line,
     differing_files,
     kill_and_resume,
+    process_tree,
     processes_marked,
     run_cli,
     sigint_by_default,
@@ -150,6 +152,41 @@ def test_an_output_that_is_not_a_pool_is_refused_unless_forced(two_recordings, t
     (tmp_path / "file").write_text("x")
     with pytest.raises(LearnError, match="the output is a file"):
         learn(two_recordings, tmp_path / "file", progress=False)
+
+
+def test_force_never_replaces_a_record_besman_did_not_write(two_recordings, tmp_path):
+    """A ``work/learn.json`` of another kind (or unreadable) is the user's: refused, with or without
+    --force, and the folder is left as it was."""
+    out = tmp_path / "mine"
+    (out / "work" / "sub").mkdir(parents=True)
+    (out / "work" / "thesis.tex").write_text("precious")
+    (out / "work" / "sub" / "data.csv").write_text("1,2")
+    for record in ('{"kind": "something-else"}', "not json"):
+        (out / "work" / "learn.json").write_text(record)
+        before = snapshot(out)
+        for force in (False, True):
+            with pytest.raises(
+                LearnError, match=r"learn\.json: (not the record of a besman learn|not valid)"
+            ):
+                learn(two_recordings, out, force=force, progress=False)
+            assert snapshot(out) == before
+
+
+@pytest.mark.slow
+def test_force_over_a_pool_of_other_settings_removes_only_its_stage_caches(small_pool, tmp_path):
+    out = tmp_path / "pool"
+    shutil.copytree(small_pool, out)
+    (out / "work" / "thesis.tex").write_text("precious")
+    (out / "notes.txt").write_text("keep")
+    cache = out / "work" / "refined" / "reach-0.json"
+    cache.write_text(json.dumps({**json.loads(cache.read_text()), "reward": 123.0}))
+    demos = small_pool.parent / "demos"
+    _learn(demos, out, "--tasks", "2", "--budget", "9", "--force")
+    assert (out / "work" / "thesis.tex").read_text() == "precious"
+    assert (out / "notes.txt").read_text() == "keep"
+    assert json.loads((out / "work" / "learn.json").read_text())["settings"]["budget"] == 9
+    stale = json.loads((out / "work" / "refined" / "reach-0.json").read_text())
+    assert stale["reward"] != 123.0  # marked below: a search of the old settings
 
 
 def test_a_pool_for_another_robot_or_other_settings_is_refused_and_kept(two_recordings, tmp_path):
@@ -377,8 +414,9 @@ def test_a_second_learn_into_a_pool_being_learned_is_refused_at_once_naming_the_
 
 @pytest.mark.slow
 def test_no_ray_process_outlives_a_learn_killed_with_sigkill(small_pool, tmp_path):
-    """Ray's head, raylet and workers share the fate of the learn that started them (the process pool's
-    workers are checked at every kill of the crash-consistency test)."""
+    """Ray's head, raylet, workers and agents share the fate of the learn that started them (the process
+    pool's workers are checked at every kill of the crash-consistency test). The agents retitle themselves,
+    which may blank the environment that /proc shows: the learn's process tree is noted before the kill."""
     pytest.importorskip("ray")
     out = tmp_path / "pool"
     demos = small_pool.parent / "demos"
@@ -388,9 +426,12 @@ def test_no_ray_process_outlives_a_learn_killed_with_sigkill(small_pool, tmp_pat
     while not list((out / "work" / "refined").glob("*.json")) and time.monotonic() < deadline:
         time.sleep(0.2)  # Ray's workers are rolling blocks out now
     assert len(processes_marked(token)) >= 4  # the learn, Ray's services and workers
+    tree = process_tree(process.pid)
+    titles = {command_line(pid) for pid in tree}
+    assert {"ray::DashboardAgent", "ray::RuntimeEnvAgent"} <= titles, titles
     os.kill(process.pid, signal.SIGKILL)
     process.wait()
-    assert_no_strays(token)
+    assert_no_strays(token, tree=tree)
 
 
 @pytest.mark.slow

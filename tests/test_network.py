@@ -196,12 +196,14 @@ class Served:
         return self.stdout.read()
 
     def stop(self) -> str:
-        """Ctrl-C: the command ends with exit 0; returns its stderr."""
+        """Ctrl-C: the command ends as every command does (exit 130, ``besman: interrupted``); returns its
+        stderr."""
         self.process.send_signal(signal.SIGINT)
         self.process.wait(timeout=60)
         self._reader.join(timeout=10)
         self.stdout.close()
-        assert self.process.returncode == 0, self.err[-3000:]
+        assert self.process.returncode == 130, self.err[-3000:]
+        assert self.err.splitlines()[-1:] == ["besman: interrupted"], self.err[-3000:]
         return self.err
 
 
@@ -402,6 +404,20 @@ def test_a_host_this_machine_cannot_serve_on_fails_at_once_in_one_line(argv, tmp
     assert result.stderr.count("\n") == 1, result.stderr
 
 
+def test_an_ipv4_address_written_as_ipv6_is_refused_with_its_ipv4_form():
+    """viser's server never came up on ``::ffff:127.0.0.1`` (the command hung, silent)."""
+    result = subprocess.run(
+        [sys.executable, "-m", "besman", "demo", "--view", "--host", "::ffff:127.0.0.1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr == (
+        "besman: error: host ::ffff:127.0.0.1: an IPv4 address written as IPv6; give it as 127.0.0.1\n"
+    )
+
+
 @pytest.mark.parametrize("allowed", ["*", "null", "viewer.example.org", "https://viewer.example.org/page"])
 def test_an_allowed_origin_must_be_one(allowed, tmp_path):
     result = subprocess.run(
@@ -444,9 +460,14 @@ def test_an_allowed_origin_must_be_one(allowed, tmp_path):
 def test_the_origin_check_accepts_the_page_where_the_browser_found_it(host, origin, accepted):
     """Which Host and Origin headers of a handshake pass :class:`~besman.sim.serving.OriginCheck` (the
     command's tests above open real websockets; these are the cases a client on 127.0.0.1 cannot send)."""
+    from websockets.datastructures import Headers
+
     from besman.sim.serving import OriginCheck
 
     check = OriginCheck("127.0.0.1", ["https://proxy.example"])
-    assert (check.refusal({"Host": host, "Origin": origin}) is None) is accepted
-    assert check.refusal({"Host": host, "Origin": "https://proxy.example"}) is None
-    assert check.refusal({"Host": host}) is None  # no browser
+    assert (check.refusal(Headers(Host=host, Origin=origin)) is None) is accepted
+    assert check.refusal(Headers(Host=host, Origin="https://proxy.example")) is None
+    assert check.refusal(Headers(Host=host)) is None  # no browser
+    twice = Headers(Host=host, Origin=origin)
+    twice["Origin"] = "http://evil.example"  # a second Origin header: refused, whichever comes first
+    assert check.refusal(twice) == "more than one Origin or Host header"

@@ -148,9 +148,10 @@ def test_the_recording_limit_is_set_by_the_environment_or_the_caller(monkeypatch
     with pytest.raises(BesmanError, match=r"larger than 100000 bytes \(245092 bytes\)"):
         load(recording)
     assert len(load(recording, max_bytes=300_000).times) > 100
-    monkeypatch.setenv("BESMAN_MAX_RECORDING_BYTES", "lots")
-    code, errors = command_line("segment", str(recording))
-    assert code == 2 and "BESMAN_MAX_RECORDING_BYTES='lots': expected a number of bytes" in errors
+    for text in ("lots", "\u00b2", "\u0663"):  # a word; digits that are no ASCII decimal (int() refuses "²")
+        monkeypatch.setenv("BESMAN_MAX_RECORDING_BYTES", text)
+        code, errors = command_line("segment", str(recording))
+        assert code == 2 and f"BESMAN_MAX_RECORDING_BYTES={text!r}: expected a number of bytes" in errors
 
 
 def test_a_recording_of_more_values_than_its_limit_allows_is_refused(tmp_path):

@@ -2,6 +2,8 @@
 
 import io
 import shutil
+import signal
+import subprocess
 import threading
 from pathlib import Path
 
@@ -137,8 +139,8 @@ def test_a_running_grasp_then_place_is_seen_in_the_browser_with_its_tree():
 
 @pytest.mark.slow
 def test_demo_view_serves_on_localhost_until_interrupted(tmp_path):
-    """``besman demo --view`` prints the URL, runs (writing its log), keeps serving the page, and ends cleanly
-    on Ctrl-C."""
+    """``besman demo --view`` prints the URL, runs (writing its log), keeps serving the page, and ends on
+    Ctrl-C as every command does (exit 130, ``besman: interrupted``; checked by ``serve_then_interrupt``)."""
     import sys
 
     from besman.trees.runner import read_log
@@ -148,6 +150,26 @@ def test_demo_view_serves_on_localhost_until_interrupted(tmp_path):
     out, _ = serve_then_interrupt(argv)
     assert out.splitlines()[1].startswith("SUCCESS: placement error")
     assert read_log(log)[2]["status"] == "SUCCESS"
+
+
+@pytest.mark.slow  # a command that serves the viewer: seconds to start
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_view_replay_ends_as_every_command_on_ctrl_c_and_sigterm(tmp_path, signum):
+    """``besman view --replay`` serves until stopped, then ends as every command does: exit 130 after Ctrl-C
+    and 143 after SIGTERM, one line (``besman: interrupted`` / ``besman: terminated``), no traceback and no
+    viser "Server stopped" (:func:`~tests.helpers.serve_then_interrupt` checks them)."""
+    import sys
+
+    log = tmp_path / "run.jsonl"
+    subprocess.run([sys.executable, "-m", "besman", "demo", "--log", log], check=True, capture_output=True)
+    argv = [sys.executable, "-m", "besman", "view", "--replay", log, "--port", "0"]
+    out, err = serve_then_interrupt(argv, signum=signum)
+    assert out == ""
+    served, stopped = err.splitlines()[-2:]  # nothing between the viewer's address and the one line
+    assert served.startswith("the viewer stays at http://127.0.0.1:") and served.endswith(" until Ctrl-C"), (
+        err
+    )
+    assert stopped == ("besman: terminated" if signum == signal.SIGTERM else "besman: interrupted"), err
 
 
 def test_the_viewer_binds_this_machine_by_default():

@@ -43,6 +43,7 @@ from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
 from besman.skills.reading import Limit, read_bytes
 from besman.skills.storage import (
+    check_replaceable,
     check_schema_version,
     open_temporary,
     put_in_place,
@@ -54,6 +55,7 @@ from besman.skills.writer_lock import WriterLock
 from besman.trees.base import BEHAVIOUR
 
 SCHEMA_VERSION = 1
+LOG_KIND = "besman-run-log"  # the header's kind: an earlier run log is all that --log replaces
 # Run logs are refused above this size: a log takes about 140 kB a simulated second (the grasp-then-place
 # demo's), so this holds some 15 minutes of a run; reading one takes about 2.5 times its size in memory.
 LOG_LIMIT = Limit(128_000_000, "BESMAN_MAX_LOG_BYTES")
@@ -285,13 +287,15 @@ class Runner:
 class LogStream:
     """A run's JSON-lines log, written as the run goes: the header now, one line per tick, the result at the
     end. Lines go to a temporary file beside ``path`` that becomes ``path`` when the result is written, so
-    ``path`` is only ever a whole log; another run writing the same ``path`` at the same time is refused
-    (:class:`~besman.skills.writer_lock.WriterLock`), and the temporaries of one killed meanwhile are
-    removed. A write that fails (a full disk) removes the temporary and the lock and raises a
+    ``path`` is only ever a whole log; it replaces only an earlier run log (anything else there is refused:
+    :func:`~besman.skills.storage.check_replaceable`); another run writing the same ``path`` at the same
+    time is refused (:class:`~besman.skills.writer_lock.WriterLock`), and the temporaries of one killed
+    meanwhile are removed. A write that fails (a full disk) removes the temporary and the lock and raises a
     :class:`~besman.skills.storage.WriteError` naming ``path``."""
 
     def __init__(self, path: str | Path, run_info: dict) -> None:
         self.path = Path(path)
+        check_replaceable(self.path, "--log", LOG_KIND)  # an earlier run log, or nothing
         self._lock = WriterLock(self.path, "--log").acquire()
         # Named for this log, and no live writer of it but this one: a killed run's, nothing else.
         remove_temporaries(self.path.parent, of=self.path.name)
@@ -301,7 +305,7 @@ class LogStream:
             self._lock.release()
             raise write_error(self.path, error) from error
         self._file = os.fdopen(descriptor, "w", encoding="utf-8")
-        self._line({"schema_version": SCHEMA_VERSION, "kind": "besman-run-log", "run": run_info})
+        self._line({"schema_version": SCHEMA_VERSION, "kind": LOG_KIND, "run": run_info})
 
     def _line(self, document: dict) -> None:
         try:
@@ -353,7 +357,7 @@ def read_log(path: str | Path, *, max_bytes: int | None = None) -> tuple[dict, l
             records.append(json.loads(line))
         except (json.JSONDecodeError, UnicodeDecodeError) as error:
             raise InputError(f"{path}:{number}: not JSON ({error})") from None
-    if not records or records[0].get("kind") != "besman-run-log":
+    if not records or records[0].get("kind") != LOG_KIND:
         raise InputError(f"{path}:1: not a besman run log")
     check_schema_version(records[0], SCHEMA_VERSION, f"{path}:1")
     if "result" not in records[-1]:

@@ -75,6 +75,9 @@ def register(commands) -> None:
         "move_obj_shelf, move_to_rest_down with --examples)",
     )
     learn.add_argument(
-        "--force", action="store_true", help="start over in a folder that holds something else"
+        "--force",
+        action="store_true",
+        help="start over: replace a pool learned with other settings (its stage caches only), or write "
+        "into a folder that holds other files (removing none of them)",
     )
     learn.set_defaults(handler=_learn)

@@ -123,10 +123,11 @@ def _tree_check(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from besman.skills.storage import check_output
+    from besman.trees.runner import LOG_KIND
 
     check_view(args)
     if args.log:
-        check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,))
+        check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,), kind=LOG_KIND)
     tree = args.file
     if args.pool is not None or args.allow_module:  # pools replaced, modules imported: logged as built
         from besman.trees import load_tree
@@ -144,6 +145,7 @@ def _demo(args: argparse.Namespace) -> int:
     check_view(args)
     from besman.skills.storage import check_output
     from besman.trees.gallery import DEMOS, demo
+    from besman.trees.runner import LOG_KIND
 
     if args.list:
         for entry in DEMOS.values():
@@ -151,7 +153,7 @@ def _demo(args: argparse.Namespace) -> int:
         return 0
     chosen = demo(args.name)  # an unknown name is refused with the list, before any work
     if args.log:
-        check_output(args.log, option="--log", suffixes=(".jsonl",))
+        check_output(args.log, option="--log", suffixes=(".jsonl",), kind=LOG_KIND)
     args.robot = chosen.check_robot(args.robot)
     options = {"robot": args.robot}
     if args.target is not None:

@@ -10,6 +10,7 @@ import argparse
 import sys
 import time
 
+from besman import stopped
 from besman.commands.options import PORT, positive
 from besman.hosts import host_addresses, origins
 from besman.skills.errors import InputError
@@ -88,16 +89,19 @@ def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple:
 
 
 def serve(viewers: list, code: int) -> int:
-    """Keeps a viewer (anything with ``url`` and ``close()``) open until Ctrl-C."""
+    """Keeps a viewer (anything with ``url`` and ``close()``) open until Ctrl-C or SIGTERM, which end it as
+    they end every command: the viewer closed, one line (``besman: interrupted`` or ``besman: terminated``)
+    and exit 130 or 143 (:func:`besman.stopped`). ``code``, the command's own, is returned when there is no
+    viewer to serve."""
     if not viewers:
         return code
     print(f"the viewer stays at {viewers[0].url} until Ctrl-C", file=sys.stderr, flush=True)
     try:
         while True:
             time.sleep(3600)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (besman.main)
         viewers[0].close()
-        return code
+        return stopped()
 
 
 def _view(args: argparse.Namespace) -> int:
