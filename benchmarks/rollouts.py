@@ -32,12 +32,12 @@ from rich.console import Console
 from rich.table import Table
 
 from besman.sim import executor
-from besman.sim.blocks import BlockTaskConfig
-from besman.sim.pick_place import PickPlaceTask
 from besman.sim.throwing import ThrowingConfig, ThrowingTask
+from besman.tasks.pick_place.blocks import BlockTaskConfig
+from besman.tasks.pick_place.episode import PickPlaceTask
 
 CANDIDATES = 64
-POOL = Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place"
+POOL = Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place_aila"
 REACH = POOL / "work" / "shapes" / "reach.json"  # the learned reach's joint-space shape
 
 

@@ -23,8 +23,8 @@ import time
 import mujoco
 
 from besman.sim.world import tabletop_world
+from besman.tasks.running import prepare
 from besman.trees import grasp_then_place
-from besman.trees.tabletop import tabletop_run
 
 SETTINGS = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
 RAW_SECONDS = 10.0  # simulated seconds of raw stepping per measurement
@@ -46,7 +46,7 @@ def measure(runs: int) -> dict:
     per_tick, records, planning, factors, raw, ratios = [], [], [], [], [], []
     for seed in range(runs):
         before = raw_real_time_factor()
-        runner, _ = tabletop_run(grasp_then_place(), SETTINGS, seed=seed)
+        runner = prepare("pick-place", grasp_then_place(), values=SETTINGS, seed=seed).runner
         result = runner.run()
         after = raw_real_time_factor()  # raw physics on both sides of each run: both see the same load
         if result.status != "SUCCESS":

@@ -21,8 +21,8 @@ import time
 import mujoco
 
 from besman.sim.viewer import Viewer, headless_chromium
+from besman.tasks.running import prepare
 from besman.trees import grasp_then_place
-from besman.trees.tabletop import tabletop_run
 from besman.trees.watching import Watch
 
 SETTINGS = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
@@ -55,7 +55,7 @@ def counted(show, frames: list):
 def measure(runs: int) -> dict:
     from playwright.sync_api import sync_playwright
 
-    runner, _ = tabletop_run(grasp_then_place(), SETTINGS, seed=0)
+    runner = prepare("pick-place", grasp_then_place(), values=SETTINGS, seed=0).runner
     viewer = Viewer(runner.executor.world.model)
     plain, viewed, updates, shares, observing, rates, frames = [], [], [], [], [], [], []
     with sync_playwright() as playwright:
@@ -74,7 +74,7 @@ def measure(runs: int) -> dict:
         viewer.show = counted(viewer.show, frames)
         for seed in range(runs):  # alternate, so that machine noise hits both alike
             for watched, factors in ((False, plain), (True, viewed)):
-                runner, _ = tabletop_run(grasp_then_place(), SETTINGS, seed=seed)
+                runner = prepare("pick-place", grasp_then_place(), values=SETTINGS, seed=seed).runner
                 if watched:
                     runner.observe = timed(Watch(viewer, speed=math.inf), observing)
                 result = runner.run()

@@ -5,9 +5,9 @@
   reference's static analysis (griffe) cannot follow, so the build first assembles ``build/docs-src/besman``
   from links to those folders.
 - ``<!-- besman-cli -->`` in a page becomes the command line's help, from the parser itself, and
-  ``<!-- besman-measurements -->`` the measurements of every demo's run summary, from the gallery itself.
+  ``<!-- besman-measurements -->`` the measurements of every task's run summary, from the task registry.
 - Pictures that live beside what they show, outside ``docs/`` (``EXTRA_FILES``), are added to the site at
-  their path in the repository, so a page links them as ``examples/pools/pick_place/summary.png``.
+  their path in the repository, so a page links them as ``examples/pools/pick_place_aila/summary.png``.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ if TYPE_CHECKING:
 
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = ROOT / "build" / "docs-src"
-EXTRA_FILES = ("examples/pools/pick_place/summary.png",)
+EXTRA_FILES = ("examples/pools/pick_place_aila/summary.png",)
 
 
 def on_startup(**_) -> None:
@@ -58,12 +58,18 @@ def on_page_markdown(markdown: str, **_) -> str:
 
 
 def _measurements() -> str:
-    """A table per demo (and one for ``besman run``) of the keys of its summary's ``measurements``."""
-    from besman.trees.gallery import DEMOS
-    from besman.trees.tabletop import MEASUREMENTS
+    """A table per task of the keys of its summary's ``measurements`` (its demo and every ``besman run`` of
+    a tree on it measure the same)."""
+    from besman.tasks import TASKS
 
-    runs = [("`besman run` (a tree on a tabletop)", MEASUREMENTS)]
-    runs += [(f"`besman demo {demo.name}`", demo.measurements) for demo in DEMOS.values()]
+    runs = [
+        (
+            f"task `{entry.name}` (`besman run` of a tree on it"
+            + (f", `besman demo {entry.name}`)" if entry.tree is not None else ")"),
+            entry.measurements,
+        )
+        for entry in TASKS.values()
+    ]
     return "\n".join(
         f"{title}:\n\n| key | meaning |\n|---|---|\n"
         + "".join(f"| `{key}` | {meaning} |\n" for key, meaning in measurements.items())

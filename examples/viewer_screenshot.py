@@ -15,15 +15,16 @@ from playwright.sync_api import sync_playwright
 
 from besman.sim.viewer import headless_chromium
 from besman.skills.storage import check_output, write_atomically
-from besman.trees import grasp_then_place
-from besman.trees.session import Session
+from besman.tasks import task
+from besman.tasks.session import Session
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="docs/viewer.png")
     out = check_output(parser.parse_args().out, option="--out", suffixes=(".png",))
-    session = Session(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)})
+    pick_place = task("pick-place")
+    session = Session(pick_place.tree_path, task=pick_place.name, demo=pick_place.name)  # its default values
     with sync_playwright() as playwright:
         browser = headless_chromium(playwright)
         page = browser.new_page(viewport={"width": 1280, "height": 800})

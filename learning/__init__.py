@@ -13,7 +13,9 @@ boundary F1), :mod:`besman.learning.segmentation_plot`,
 :mod:`besman.learning.contextual_search` (C-REPS and contextual CMA-ES: one policy over all tasks),
 :mod:`besman.learning.template_selection` (a template's kernel by leave-one-out outcomes),
 :mod:`besman.learning.retargeting` (a person's movement onto AILA's arm), :mod:`besman.learning.pipeline`
-(``besman learn``: recordings to a template pool, figures by :mod:`besman.learning.pipeline_plots`),
+(``besman learn``: recordings to a template pool of a task's :mod:`building blocks <besman.learning.blocks>`;
+its stages in :mod:`besman.learning.pipeline_labels` and :mod:`besman.learning.pipeline_refinement`, its
+record in :mod:`besman.learning.pipeline_record`, figures by :mod:`besman.learning.pipeline_plots`),
 :mod:`besman.learning.online` (refining a template's instance in a copy of the world) and
 :mod:`besman.learning.throwing_experiment` (the paper's skill-template experiment and the field, judged by
 :mod:`besman.learning.throwing_claims`, drawn by :mod:`besman.learning.throwing_plots`;

@@ -75,7 +75,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import ClassVar, Literal, Protocol
 
 import numpy as np
 
@@ -231,11 +231,16 @@ def _context_dimensions(context_box: ContextBox | None, context_dimensions: int 
 
 
 class _LinearGaussianPolicySearch:
-    """The upper-level policy N(W phi(s), Sigma) with its sampling, its rollout window and update schedule.
+    """The upper-level policy N(W phi(s), Sigma) with its sampling, its rollout window and update schedule;
+    ``config`` holds the method's settings (default: its ``config_type``'s defaults).
 
-    Subclasses set ``_factor`` (L with Sigma = L L^T) and implement ``_update`` on the window's normalised
-    contexts, thetas and rewards, which runs every ``update_every`` rollouts on the last ``window``.
+    Subclasses name their settings' class (``config_type``), say how many rollouts are between updates and
+    how many each update uses (``_schedule``), set up their own state in ``_begin`` (``_factor``, L with
+    Sigma = L L^T, starts as the start's) and implement ``_update`` on the window's normalised contexts,
+    thetas and rewards.
     """
+
+    config_type: ClassVar[type[CREPSConfig | ContextualCMAESConfig]]
 
     def __init__(
         self,
@@ -243,20 +248,19 @@ class _LinearGaussianPolicySearch:
         spread,
         *,
         seed: int,
-        context_box: ContextBox | None,
-        context_dimensions: int | None,
-        policy_features: FeatureKind,
-        update_every: int,
-        window: int,
+        context_box: ContextBox | None = None,
+        context_dimensions: int | None = None,
+        config: CREPSConfig | ContextualCMAESConfig | None = None,
     ) -> None:
+        self.config = self.config_type() if config is None else config
         self._start = WarmStart(mean, spread)
         seed = SEED(f"learning.{type(self).__name__}: seed", seed)
         self.context_dimensions = _context_dimensions(context_box, context_dimensions)
         self.parameters = self._start.mean.size
         self._box = context_box
-        self._policy_features = policy_features
+        self._policy_features = self.config.policy_features
         self._rng = np.random.default_rng(seed)
-        self._update_every = update_every
+        self._update_every, window = self._schedule()
         coefficients = np.zeros(
             (self._features(np.zeros((1, self.context_dimensions))).shape[1], self.parameters)
         )
@@ -268,6 +272,7 @@ class _LinearGaussianPolicySearch:
         self._window_rewards: deque[float] = deque(maxlen=window)
         self.rollouts_told = 0
         self.updates = 0
+        self._begin()
 
     @property
     def batch_size(self) -> int:
@@ -310,6 +315,14 @@ class _LinearGaussianPolicySearch:
                 )
                 self.updates += 1
 
+    def _schedule(self) -> tuple[int, int]:
+        """The rollouts between updates (the batch size) and the last rollouts each update uses."""
+        raise NotImplementedError
+
+    def _begin(self) -> None:
+        """Sets up the method's own state, once the policy and its window are."""
+        raise NotImplementedError
+
     def _update(self, normalised_contexts: np.ndarray, thetas: np.ndarray, rewards: np.ndarray) -> None:
         raise NotImplementedError
 
@@ -321,28 +334,14 @@ class CREPS(_LinearGaussianPolicySearch):
     ``context_dimensions``) gives the contexts' size; ``seed`` fixes every sample.
     """
 
-    def __init__(
-        self,
-        mean,
-        spread,
-        *,
-        seed: int,
-        context_box: ContextBox | None = None,
-        context_dimensions: int | None = None,
-        config: CREPSConfig = CREPSConfig(),
-    ) -> None:
-        super().__init__(
-            mean,
-            spread,
-            seed=seed,
-            context_box=context_box,
-            context_dimensions=context_dimensions,
-            policy_features=config.policy_features,
-            update_every=config.update_every,
-            window=config.window,
-        )
-        self.config = config
-        self._variance_floor = config.covariance_floor * float(np.mean(np.diag(self._start.covariance())))
+    config_type = CREPSConfig
+
+    def _schedule(self) -> tuple[int, int]:
+        return self.config.update_every, self.config.window
+
+    def _begin(self) -> None:
+        mean_variance = float(np.mean(np.diag(self._start.covariance())))
+        self._variance_floor = self.config.covariance_floor * mean_variance
         self.last_dual: DualSolution | None = None
 
     def _update(self, normalised_contexts: np.ndarray, thetas: np.ndarray, rewards: np.ndarray) -> None:
@@ -369,30 +368,14 @@ class ContextualCMAES(_LinearGaussianPolicySearch):
     ``context_dimensions``) gives the contexts' size; ``seed`` fixes every sample.
     """
 
-    def __init__(
-        self,
-        mean,
-        spread,
-        *,
-        seed: int,
-        context_box: ContextBox | None = None,
-        context_dimensions: int | None = None,
-        config: ContextualCMAESConfig = ContextualCMAESConfig(),
-    ) -> None:
-        start = WarmStart(mean, spread)
-        context_dimensions = _context_dimensions(context_box, context_dimensions)
-        population = config.population_size or contextual_population_size(start.mean.size, context_dimensions)
-        super().__init__(
-            start.mean,
-            start.spread,
-            seed=seed,
-            context_box=context_box,
-            context_dimensions=context_dimensions,
-            policy_features=config.policy_features,
-            update_every=population,
-            window=population,
-        )
-        self.config = config
+    config_type = ContextualCMAESConfig
+
+    def _schedule(self) -> tuple[int, int]:
+        default = contextual_population_size(self.parameters, self.context_dimensions)
+        population = self.config.population_size or default
+        return population, population  # an update per population, on that population
+
+    def _begin(self) -> None:
         self.population_size = self._update_every
         n, total = self.parameters, self.parameters + self.context_dimensions
         mu = self.population_size // 2

@@ -1,7 +1,7 @@
 """The figures :func:`besman.learning.pipeline.learn` writes beside the pool.
 
-- ``segmentations.png``: each recording's hand speed, its segment boundaries, and the instances of AILA's
-  blocks shaded in their colours;
+- ``segmentations.png``: each recording's hand speed, its segment boundaries, and the instances of the
+  task's blocks shaded in their colours;
 - ``learning_curves.png``: per block, the best reward so far over the rollouts of each training task;
 - ``summary.png``: per block and training task, the retargeted primitive's reward before refinement and the
   refined one (filled: the rollout succeeded).
@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+from itertools import cycle
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,18 @@ from besman.learning.figures import plt, save_png
 from besman.learning.labelling import DemonstrationSegment
 from besman.learning.preprocessing import smooth
 
-COLOURS = {"reach": "tab:blue", "carry": "tab:orange", "return": "tab:green"}
+# The blocks' colours, in the task's order: matplotlib's tab colours but grey (the segment starts').
+COLOURS = (
+    "tab:blue",
+    "tab:orange",
+    "tab:green",
+    "tab:red",
+    "tab:purple",
+    "tab:brown",
+    "tab:pink",
+    "tab:olive",
+    "tab:cyan",
+)
 
 
 def write_figures(
@@ -26,17 +38,20 @@ def write_figures(
     demos: list[Demonstration],
     files: list[Path],
     movements: list[list[DemonstrationSegment]],
-    blocks: dict[str, list[dict]],
+    instances: dict[str, list[dict]],
     refined: dict[str, list[dict]],
 ) -> tuple[Path, ...]:
+    """The three figures in ``out``: the blocks' ``instances`` in the recordings and their ``refined``
+    training tasks, each block (in the task's order, that of ``refined``) in its colour."""
+    colours = dict(zip(refined, cycle(COLOURS)))
     return (
-        _segmentations(out / "segmentations.png", demos, files, movements, blocks),
-        _curves(out / "learning_curves.png", refined),
-        _summary(out / "summary.png", refined),
+        _segmentations(out / "segmentations.png", demos, files, movements, instances, colours),
+        _curves(out / "learning_curves.png", refined, colours),
+        _summary(out / "summary.png", refined, colours),
     )
 
 
-def _segmentations(path, demos, files, movements, blocks) -> Path:
+def _segmentations(path, demos, files, movements, instances, colours) -> Path:
     figure, axes = plt.subplots(len(demos), 1, figsize=(10, 1.1 * len(demos) + 0.8), squeeze=False)
     for row, (demo, file, per_demo) in enumerate(zip(demos, files, movements, strict=True)):
         ax = axes[row, 0]
@@ -45,17 +60,17 @@ def _segmentations(path, demos, files, movements, blocks) -> Path:
         ax.plot(times, speed, color="k", lw=0.8)
         for s in per_demo:
             ax.axvline(times[s.start], color="0.6", lw=0.5)
-        for block, instances in blocks.items():
-            for instance in instances:
+        for block, found in instances.items():
+            for instance in found:
                 if instance["file"] == file.name:
                     ax.axvspan(
-                        times[instance["start"]], times[instance["end"]], color=COLOURS[block], alpha=0.3
+                        times[instance["start"]], times[instance["end"]], color=colours[block], alpha=0.3
                     )
         ax.set_ylabel(file.stem, rotation=0, ha="right", fontsize=7)
         ax.set_yticks([])
     axes[-1, 0].set_xlabel(
-        "time (s); hand speed, segment starts (grey), AILA's blocks: "
-        + ", ".join(f"{block} ({colour[4:]})" for block, colour in COLOURS.items())
+        "time (s); hand speed, segment starts (grey), the blocks: "
+        + ", ".join(f"{block} ({colour[4:]})" for block, colour in colours.items())
     )
     figure.suptitle("Segmentation and the instances of each building block")
     figure.tight_layout()
@@ -68,12 +83,12 @@ def _per_block(refined):
     return figure, zip(axes[0], refined.items(), strict=True)
 
 
-def _curves(path, refined) -> Path:
+def _curves(path, refined, colours) -> Path:
     figure, panels = _per_block(refined)
     for ax, (block, runs) in panels:
         for run in runs:
             curve = np.array(run["curve"])
-            ax.plot(curve[:, 0], curve[:, 2], color=COLOURS[block], alpha=0.6, lw=1)
+            ax.plot(curve[:, 0], curve[:, 2], color=colours[block], alpha=0.6, lw=1)
         ax.set_title(f"{block}: {len(runs)} training tasks")
         ax.set_xlabel("rollout")
         ax.set_ylabel("best reward so far")
@@ -81,7 +96,7 @@ def _curves(path, refined) -> Path:
     return save_png(figure, path)
 
 
-def _summary(path, refined) -> Path:
+def _summary(path, refined, colours) -> Path:
     figure, panels = _per_block(refined)
     for ax, (block, runs) in panels:
         k = np.arange(len(runs))
@@ -91,7 +106,7 @@ def _summary(path, refined) -> Path:
         ):
             rewards = np.array([run[key] for run in runs])
             success = np.array([run[outcome]["success"] for run in runs])
-            colour = COLOURS[block] if key == "reward" else "0.5"
+            colour = colours[block] if key == "reward" else "0.5"
             ax.scatter(k[success] + offset, rewards[success], color=colour, label=label)
             ax.scatter(k[~success] + offset, rewards[~success], facecolors="none", edgecolors=colour)
         ax.set_title(block)

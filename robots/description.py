@@ -43,11 +43,15 @@ Schema version 2 adds what lets any arm run the same skills (version 1 files sta
   jerk limits, and optionally ``still_speed``, the fingers' joint speed (their joint's units per s, default
   1e-3) under which closed fingers count as settled (fingers that squeeze an object may creep). With
   several arms working at once, groups that two arms share (a waist) are held.
-- ``"tabletop"``: where the tabletop world puts its table and shelf boards and where objects and targets may
-  be, in the robot's frame (the world's, with the robot standing at the origin); a two-arm robot adds
-  ``"handover"``: the area on the table where the left hand picks the bar, the area on the shelf where the
-  right hand puts it, and the two poses between (``ready``: the right hand waits there; ``present``: the left
-  hand holds the bar there), each ``{"position": [x, y, z], "yaw": rad}`` (yaw optional).
+- ``"tabletop"``: the robot's work surface: where the tabletop world puts its table and shelf boards, in
+  the robot's frame (the world's, with the robot standing at the origin), and ``reach``, the area of the
+  table where the first arm reaches top-down grasps (objects start at its middle; tasks draw their objects
+  there).
+- ``"tasks"``: numbers of tasks that do not know this robot, by task name (``{"pick-place": {"places":
+  ...}}``); each task reads and checks its own (:mod:`besman.tasks`). The tasks keep the numbers of the
+  shipped robots themselves. An earlier description's ``tabletop.objects`` is read as ``tabletop.reach``,
+  its ``tabletop.places`` as ``tasks.pick-place.places`` and its ``tabletop.handover`` as
+  ``tasks.handover``.
 """
 
 from __future__ import annotations
@@ -167,27 +171,13 @@ class HandPose:
 
 
 @dataclass(frozen=True)
-class HandoverLayout:
-    """A two-arm handover on the tabletop: the bar's area on the table (the left hand's reach), its place
-    area on the shelf (the right hand's), where the right hand waits and where the left hand presents."""
-
-    bar: Area
-    places: Area
-    ready: HandPose
-    present: HandPose
-
-
-@dataclass(frozen=True)
 class TabletopLayout:
-    """The tabletop world around a robot: the table and the shelf board on it, the areas (x, y ranges)
-    where objects stand on the table and where they are to be placed on the shelf, and (two arms) the
-    handover's."""
+    """The robot's work surface: the table, the shelf board on it and the area of the table the first arm
+    reaches (top-down grasps)."""
 
     table: Board
     shelf: Board
-    objects: Area
-    places: Area
-    handover: HandoverLayout | None = None
+    reach: Area
 
 
 @dataclass(frozen=True)
@@ -216,6 +206,7 @@ class RobotDescription:
     exclude: tuple[tuple[str, str], ...] = ()
     arms: dict[str, ArmSpec] = field(default_factory=dict)
     tabletop: TabletopLayout | None = None
+    tasks: dict[str, dict] = field(default_factory=dict)  # task name -> its section (read by the task)
     velocity_feedforward: bool = False
     gravity_compensation: bool = False
     home: dict[str, float] = field(default_factory=dict)
@@ -367,12 +358,20 @@ def _board(value: Any, where: str) -> Board:
     return Board(float(height), _range(value.get("x"), f"{where}.x"), _range(value.get("y"), f"{where}.y"))
 
 
-def _area(value: Any, where: str) -> Area:
+def read_area(value: Any, where: str, board: Board | None = None) -> Area:
+    """An area ``{"x": [x0, x1], "y": [y0, y1]}`` (m); with a ``board``, it must lie on it."""
     value = _object(value, where)
-    return _range(value.get("x"), f"{where}.x"), _range(value.get("y"), f"{where}.y")
+    area = _range(value.get("x"), f"{where}.x"), _range(value.get("y"), f"{where}.y")
+    if board is not None and not _inside(area, board):
+        raise DescriptionError(
+            f"{where}: the area x {list(area[0])}, y {list(area[1])} must lie on the board at "
+            f"{board.height} m (x {list(board.x)}, y {list(board.y)})"
+        )
+    return area
 
 
-def _hand_pose(value: Any, where: str) -> HandPose:
+def read_hand_pose(value: Any, where: str) -> HandPose:
+    """A hand pose ``{"position": [x, y, z], "yaw": rad}`` (yaw optional)."""
     value = _object(value, where)
     unknown = sorted(set(value) - {"position", "yaw"})
     if unknown:
@@ -384,14 +383,15 @@ def _hand_pose(value: Any, where: str) -> HandPose:
     )
 
 
-def _handover(value: Any, where: str) -> HandoverLayout:
+def section(value: Any, where: str, fields: tuple[str, ...]) -> dict:
+    """A mapping with exactly the given ``fields`` (a task's section of a description)."""
     value = _object(value, where)
-    return HandoverLayout(
-        bar=_area(_field(value, "bar", dict, where), f"{where}.bar"),
-        places=_area(_field(value, "places", dict, where), f"{where}.places"),
-        ready=_hand_pose(_field(value, "ready", dict, where), f"{where}.ready"),
-        present=_hand_pose(_field(value, "present", dict, where), f"{where}.present"),
-    )
+    unknown = sorted(set(value) - set(fields))
+    if unknown:
+        raise DescriptionError(f"{where}.{unknown[0]}: not a field here ({', '.join(fields)})")
+    for name in fields:
+        _field(value, name, dict, where)
+    return value
 
 
 def _inside(area: Area, board: Board) -> bool:
@@ -399,24 +399,38 @@ def _inside(area: Area, board: Board) -> bool:
     return board.x[0] <= x0 and x1 <= board.x[1] and board.y[0] <= y0 and y1 <= board.y[1]
 
 
+# An earlier description's task areas inside "tabletop", and the task section each is read into.
+EARLIER_TASK_FIELDS = {"places": "pick-place", "handover": "handover"}
+
+
 def _tabletop(value: Any, where: str) -> TabletopLayout:
     value = _object(value, where)
-    handover = value.get("handover")
-    layout = TabletopLayout(
-        table=_board(_field(value, "table", dict, where), f"{where}.table"),
+    unknown = sorted(set(value) - {"table", "shelf", "reach", "objects", *EARLIER_TASK_FIELDS})
+    if unknown:
+        raise DescriptionError(f"{where}.{unknown[0]}: not a field of the tabletop (table, shelf, reach)")
+    table = _board(_field(value, "table", dict, where), f"{where}.table")
+    reach = (
+        "reach" if "reach" in value or "objects" not in value else "objects"
+    )  # "objects": the earlier name
+    return TabletopLayout(
+        table=table,
         shelf=_board(_field(value, "shelf", dict, where), f"{where}.shelf"),
-        objects=_area(_field(value, "objects", dict, where), f"{where}.objects"),
-        places=_area(_field(value, "places", dict, where), f"{where}.places"),
-        handover=None if handover is None else _handover(handover, f"{where}.handover"),
+        reach=read_area(_field(value, reach, dict, where), f"{where}.{reach}", table),
     )
-    areas = [("objects", layout.objects, "table"), ("places", layout.places, "shelf")]
-    if layout.handover is not None:
-        handover = layout.handover
-        areas += [("handover.bar", handover.bar, "table"), ("handover.places", handover.places, "shelf")]
-    for name, area, board in areas:
-        if not _inside(area, getattr(layout, board)):
-            raise DescriptionError(f"{where}.{name}: the area must lie on the {board}")
-    return layout
+
+
+def _tasks(raw: dict, where: str) -> dict[str, dict]:
+    """The description's task sections, the earlier form's areas in ``tabletop`` among them."""
+    given = _object(raw.get("tasks", {}), f"{where}.tasks")
+    tasks = {name: _object(value, f"{where}.tasks.{name}") for name, value in given.items()}
+    earlier = raw.get("tabletop") or {}
+    for name, task in EARLIER_TASK_FIELDS.items():
+        if name in earlier:
+            if task == name:
+                tasks.setdefault(task, earlier[name])
+            else:
+                tasks.setdefault(task, {}).setdefault(name, earlier[name])
+    return tasks
 
 
 def read_description(path: Path) -> RobotDescription:
@@ -511,6 +525,7 @@ def read_description(path: Path) -> RobotDescription:
         exclude=tuple(pairs),
         arms=arms,
         tabletop=None if tabletop is None else _tabletop(tabletop, f"{where}.tabletop"),
+        tasks=_tasks(raw, where),
         velocity_feedforward=switches["velocity_feedforward"],
         gravity_compensation=switches["gravity_compensation"],
         home={joint: float(position) for joint, position in home.items()},

@@ -8,9 +8,9 @@
   (:mod:`besman.sim.faults`); :mod:`besman.sim.references` turns primitives into joint references.
 - :mod:`besman.sim.primitives`, :mod:`besman.sim.manipulation` - movement primitives from goals; pick and
   place planning.
-- :mod:`besman.sim.throwing`, :mod:`besman.sim.pick_place` - the tasks, evaluated in batches
-  (:mod:`besman.sim.evaluation`: local cores or Ray); :mod:`besman.sim.blocks` - pick and place's building
-  blocks (reach, carry, return) simulated one at a time, for refining learned primitives.
+- :mod:`besman.sim.throwing` - the PA-10's throws, evaluated in batches (:mod:`besman.sim.evaluation`:
+  local cores or Ray); the tasks themselves, pick and place's batched episodes among them, are in
+  :mod:`besman.tasks`.
 - :mod:`besman.sim.viewer` - the browser viewer (viser, mjviser): the world posed from the simulation and a
   tree panel; :mod:`besman.sim.serving` - who may open it (its own page only, this machine by default).
 """
@@ -19,7 +19,6 @@ from besman.sim.arm import Arm
 from besman.sim.evaluation import Evaluation
 from besman.sim.executor import Executor, ExecutorConfig
 from besman.sim.motions import MotionStatus
-from besman.sim.pick_place import PickPlaceTask
 from besman.sim.throwing import ThrowingConfig, ThrowingTask
 from besman.sim.world import World, tabletop_world, throwing_world
 from besman.skills.tasks import TaskBounds
@@ -30,7 +29,6 @@ __all__ = [
     "Executor",
     "ExecutorConfig",
     "MotionStatus",
-    "PickPlaceTask",
     "TaskBounds",
     "ThrowingConfig",
     "ThrowingTask",

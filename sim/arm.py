@@ -81,6 +81,12 @@ class Arm:
         """The arm's joint positions in the simulation now."""
         return self.world.data.qpos[self.qpos_indices]
 
+    @property
+    def home(self) -> np.ndarray:
+        """The arm's joint positions in the robot's home keyframe."""
+        key = self.world.model.key(self.world.robot.description.keyframe)
+        return key.qpos[self.qpos_indices].copy()
+
     # -- forward kinematics --------------------------------------------------------------------------------
 
     def _configuration(self, joint_positions) -> np.ndarray:

@@ -1,5 +1,4 @@
-"""The building blocks of a robot's pick and place (AILA's by default), each simulated on its own: reach,
-carry and return.
+"""The building blocks of the pick and place skills, each simulated on its own: reach, carry and return.
 
 Refining one block by policy search needs rollouts of that block only, from where the task stands when the
 block begins. :func:`prepare` gets there once per task tau with the planned (inverse-kinematics) motions of
@@ -8,16 +7,17 @@ block's learned primitive moved to the block's planned end points (:func:`~besma
 then what decides the block's success, in full contact physics:
 
 - ``reach`` (tau: object x, y): from the robot's home to above the box; then descend, close on the box and
-  lift it. Success: the box is held and lifted 5 cm.
+  lift it. Success: the box is held and lifted 5 cm (:func:`~besman.sim.outcomes.lifted`).
 - ``carry`` (tau: object x, y, place x, y): the box in the hand, from above the table to above the place
-  target; then set it down, release and retreat. Success: the box stands upright on the shelf within 2 cm
-  of the target.
+  target; then set it down, release and retreat. Success: the task's rule
+  (:func:`~besman.sim.outcomes.placement`).
 - ``return`` (tau: place x, y): from above the placed box back to the home configuration. Success: it
   arrives.
 
 A rollout also measures the block's own motion - duration, hand path length, the hand's peak jerk, the
 smallest joint-limit margin and the configurations in collision - and :class:`Reward` scores it.
-:class:`BlockTask` evaluates batches of thetas like the other tasks (local processes or Ray).
+Tasks learn these blocks (:mod:`besman.tasks.pick_place.blocks`: a batched task of rollouts for policy
+search) and the learned grasp and place leaves refine them online (:mod:`besman.learning.online`).
 """
 
 from __future__ import annotations
@@ -27,9 +27,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from besman.robots.description import TabletopLayout
 from besman.sim.arm import Arm
-from besman.sim.evaluation import BatchedTask, Evaluation
 from besman.sim.executor import Executor
 from besman.sim.manipulation import (
     DEFAULT_PLAN,
@@ -43,13 +41,12 @@ from besman.sim.manipulation import (
     plan_pick,
     plan_place,
 )
-from besman.sim.motions import FollowPrimitive, MotionStatus
-from besman.sim.pick_place import LIFT_HEIGHT, pick_place_bounds, settle_and_measure, step_motion
+from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
+from besman.sim.outcomes import lifted, placement
 from besman.sim.primitives import shaped
-from besman.sim.world import DEFAULT_BOX, World, tabletop_world
+from besman.sim.world import DEFAULT_BOX, World
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
-from besman.skills.tasks import TaskBounds
 
 # Each block's task parameters: the columns of the pick-and-place tau that move its end points.
 BLOCK_PARAMETERS = {
@@ -62,29 +59,6 @@ TIMEOUT = 15.0  # s of simulated time for one motion
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 PATH_STRIDE = 5  # control cycles between the hand positions that measure path length and jerk (100 Hz)
 COLLISION_STRIDE = 10  # control cycles between the configurations checked for collisions
-
-
-def block_bounds(block: str, robot: str | TabletopLayout = "aila") -> TaskBounds:
-    """The box of a block's tau on ``robot`` (a name, folder or tabletop layout): its columns of the robot's
-    pick-and-place bounds."""
-    check_block(block)
-    bounds = pick_place_bounds(robot)
-    columns = [bounds.names.index(name) for name in BLOCK_PARAMETERS[block]]
-    return TaskBounds(
-        BLOCK_PARAMETERS[block],
-        tuple(bounds.low[c] for c in columns),
-        tuple(bounds.high[c] for c in columns),
-    )
-
-
-def full_tau(block: str, tau, robot: str | TabletopLayout = "aila") -> np.ndarray:
-    """The pick-and-place tau of a block's tau; the parameters it does not use sit at the bounds' centre."""
-    tau = block_bounds(block, robot).check(tau)[0]
-    bounds = pick_place_bounds(robot)
-    full = (np.asarray(bounds.low) + np.asarray(bounds.high)) / 2
-    for value, name in zip(tau, BLOCK_PARAMETERS[block], strict=True):
-        full[bounds.names.index(name)] = value
-    return full
 
 
 def check_block(block: str) -> None:
@@ -160,6 +134,15 @@ def restore(world: World, state: np.ndarray) -> None:
     mujoco.mj_forward(world.model, world.data)
 
 
+def step_motion(step: Step, planned: PickMotions | PlaceMotions, item: str) -> Motion:
+    """The motion that runs a pick-and-place ``step``: the ``planned`` primitive it follows, or its gripper
+    action on the object ``item``."""
+    if step.move is not None:
+        return FollowPrimitive(getattr(planned, step.move), name=step.name)
+    closing = step.gripper == "close"
+    return GripperMotion(step.name, opening=0.0 if closing else None, expect_grasp=closing, grasp_object=item)
+
+
 def _run(executor: Executor, steps, planned, what: str) -> None:
     """Runs pick-and-place ``steps`` with their ``planned`` motions; a failure is a planning error (the
     planned motions before a block must work for the block to be tried)."""
@@ -181,12 +164,12 @@ def steps_after(block: str, planned: PickMotions | PlaceMotions) -> tuple:
     return tuple((step, planned) for step in steps[index + 1 :])
 
 
-def prepare(world: World, block: str, tau, plan: PickPlacePlan = DEFAULT_PLAN) -> BlockStart:
-    """Brings ``world`` to where ``block`` begins for its ``tau`` with the planned motions before it (from
-    the robot's home) and plans the block's end points and what follows it. Raises
-    :class:`~besman.sim.manipulation.PlanningError` if that cannot be done."""
-    full = full_tau(block, tau, world.layout)
-    object_xy, place_xy = full[:2], full[2:]
+def prepare(world: World, block: str, object_xy, place_xy, plan: PickPlacePlan = DEFAULT_PLAN) -> BlockStart:
+    """Brings ``world`` to where ``block`` begins for the box at ``object_xy`` and its target ``place_xy``,
+    with the planned motions before it (from the robot's home), and plans the block's end points and what
+    follows it. Raises :class:`~besman.sim.manipulation.PlanningError` if that cannot be done."""
+    check_block(block)
+    object_xy, place_xy = np.asarray(object_xy, dtype=float), np.asarray(place_xy, dtype=float)
     item = DEFAULT_BOX
     world.reset()
     world.place_on(item.name, "table", *object_xy)
@@ -244,21 +227,25 @@ def rollout(world: World, start: BlockStart, shape: MovementPrimitive) -> BlockO
         return BlockOutcome(False, f"{start.block}: {motion.message}", **measures)
     if start.block == "carry" and not executor.hand.holds(item.name):
         return BlockOutcome(False, "carry: the box slipped out of the hand", **measures)
-    resting = world.surface("table").height + item.half_height
     for step, planned in start.after:
         motion = executor.run(step_motion(step, planned, item.name), timeout=TIMEOUT)
         if motion.status is not MotionStatus.SUCCEEDED:
             return BlockOutcome(False, f"{motion.name} after the {start.block}: {motion.message}", **measures)
-    if start.block == "reach":
-        lifted = world.object_pose(item.name).position[2] >= resting + LIFT_HEIGHT - 0.005
-        if not (executor.hand.holds(item.name) and lifted):
-            return BlockOutcome(False, "reach: the box was not grasped and lifted", **measures)
-    if start.block == "carry":
-        placed = settle_and_measure(world, item, start.place_xy)
-        return BlockOutcome(
-            placed.success, f"carry: {placed.message}", **measures, placement_error=placed.error
-        )
-    return BlockOutcome(True, f"{start.block}: succeeded", **measures)
+    success, message, error = judge_block(world, executor.hand, start.block, start.place_xy)
+    return BlockOutcome(success, message, **measures, placement_error=error)
+
+
+def judge_block(world: World, hand, block: str, place_xy) -> tuple[bool, str, float | None]:
+    """Whether ``block`` succeeded, once it and the steps after it ran: the reach, if the box is in
+    ``hand`` and lifted; the carry, by the place skill's rule (:func:`~besman.sim.outcomes.placement`, the
+    one pick and place's runs are judged by), with the placement error; the return, by arriving. Returns
+    success, a message and the placement error (None but for the carry)."""
+    if block == "reach" and not lifted(world, hand, DEFAULT_BOX.name):
+        return False, "reach: the box was not grasped and lifted", None
+    if block == "carry":
+        placed = placement(world, DEFAULT_BOX.name, place_xy)
+        return placed.success, f"carry: {placed.message}", placed.error
+    return True, f"{block}: succeeded", None
 
 
 def hand_measures(arm: Arm, commanded: np.ndarray, period: float) -> dict[str, float]:
@@ -273,48 +260,3 @@ def hand_measures(arm: Arm, commanded: np.ndarray, period: float) -> dict[str, f
         "path_length": float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()),
         "peak_jerk": float(np.linalg.norm(jerk, axis=1).max()),
     }
-
-
-@dataclass(frozen=True)
-class BlockTaskConfig:
-    """A block's refinement task: the block, its learned joint-space primitive (a primitive file, so that
-    worker processes can load it) and the reward."""
-
-    block: str
-    shape: str
-    reward: Reward = Reward()
-    robot: str = "aila"
-
-    def build(self) -> BlockTask:
-        return BlockTask(self)
-
-
-class BlockTask(BatchedTask):
-    """Rollouts of one block for thetas of its primitive (the weights matter: the end points are planned
-    per tau) in block taus; rewards by :class:`Reward`, details :class:`BlockOutcome`."""
-
-    def __init__(self, config: BlockTaskConfig) -> None:
-        check_block(config.block)
-        self.config = config
-        self.bounds = block_bounds(config.block, config.robot)
-        self.shape = MovementPrimitive.load(config.shape)
-        self.world = tabletop_world(robot=config.robot)
-        self._starts: dict[tuple[float, ...], BlockStart] = {}
-
-    def start(self, tau) -> BlockStart:
-        """The block's start for ``tau`` (prepared once, then kept)."""
-        key = tuple(float(v) for v in self.bounds.check(tau)[0])
-        if key not in self._starts:
-            self._starts[key] = prepare(self.world, self.config.block, key)
-        return self._starts[key]
-
-    @property
-    def n_params(self) -> int:
-        return self.shape.theta.size
-
-    def evaluate_locally(self, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
-        details = []
-        for theta, tau in zip(thetas, taus, strict=True):
-            self.shape.dmp.set_params(theta)
-            details.append(rollout(self.world, self.start(tau), self.shape))
-        return Evaluation(np.array([self.config.reward.score(d) for d in details]), tuple(details))

@@ -12,6 +12,7 @@ scripted pick-and-place task execute them the same way. A plan that cannot be ma
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import astuple, dataclass, fields
 
 import numpy as np
@@ -110,6 +111,7 @@ def plan_leg(
     settings: ReferenceSettings,
     yaws: np.ndarray = GRASP_YAWS,
     shift=None,
+    accept: Callable[[_Leg], bool] | None = None,
 ) -> _Leg | None:
     """The best hand yaw among ``yaws`` for three top-down poses reached one after the other from the
     configuration ``start`` (moved by ``shift(yaw)``, an (x, y) offset, where the poses depend on the
@@ -118,18 +120,29 @@ def plan_leg(
     :data:`MAX_DEVIATION` of a straight line. Among the yaws that work, the one whose moves keep farthest
     from the joint limits (the first of ``yaws`` on a tie). Where no yaw reaches the poses, the yaws turned
     by 180 deg are tried (the same grasps, by the hand's symmetry): a left arm reaches those of a right
-    arm mirrored.
+    arm mirrored. Where no yaw works from ``start``, the poses are solved from the arm's home (inverse
+    kinematics started elsewhere finds other branches; the caller's move to the leg starts at ``start`` all
+    the same). ``accept(leg)``, if given, must hold of the chosen leg (what the caller plans around it).
 
     Building a yaw's moves is the expensive part, so it is a branch and bound: both moves start at a pose's
     configuration, so the closer of the first two configurations to a limit bounds the yaw's clearance from
     above; yaws are built in order of that bound, and one that cannot beat the best so far is not built.
     The choice is the same as building every yaw."""
+    for first in (start, arm.home):
+        best = _best_leg(arm, first, positions, names, duration, allowed, settings, yaws, shift, accept)
+        if best is not None:
+            return best
+    return None
+
+
+def _best_leg(arm, first, positions, names, duration, allowed, settings, yaws, shift, accept) -> _Leg | None:
+    """:func:`plan_leg`'s choice with the poses solved from the configuration ``first``."""
     candidates = []
     for turned in (yaws, yaws + np.pi):
         for index, yaw in enumerate(turned):
             orientation = top_down(yaw)
             poses = positions if shift is None else [p + np.r_[shift(yaw), 0.0] for p in positions]
-            configurations = _pose_configurations(arm, start, poses, orientation, allowed)
+            configurations = _pose_configurations(arm, first, poses, orientation, allowed)
             if configurations is not None:
                 bound = min(arm.limit_margin(configurations[0]), arm.limit_margin(configurations[1]))
                 candidates.append((bound, index, orientation, configurations, poses))
@@ -140,6 +153,8 @@ def plan_leg(
         if best is not None and (bound, -index) <= (best.clearance, -best_index):
             break  # neither this yaw nor any after it can beat the best
         leg = _build_leg(arm, configurations, poses, orientation, names, duration, allowed, settings)
+        if leg is not None and accept is not None and not accept(leg):
+            continue
         if leg is not None and (best is None or (leg.clearance, -index) > (best.clearance, -best_index)):
             best, best_index = leg, index
     return best
@@ -328,14 +343,19 @@ def plan_place(
     held=None,
 ) -> PlaceMotions:
     """Motions that carry ``item`` from the configuration ``start`` (holding it at carrying height) to
-    ``place_xy`` on the shelf, set it down and retreat. The carry is a point-to-point move, or the
-    joint-space primitive ``carry`` (learned from people) moved to its end points.
+    ``place_xy`` on the shelf, or ``(x, y, z)``: onto a top at height z (another object's: a stack), set it
+    down and retreat. The carry is a point-to-point move, or the joint-space primitive ``carry`` (learned
+    from people) moved to its end points.
 
     ``held`` (x, y) is where the object's centre is from the hand's grasp point now, for an object held
     off-centre (a bar taken at one end): the object, not the hand, goes to ``place_xy``, and since the
     object turns with the hand, any top-down yaw will do (the offset turned with it)."""
     place_xy = np.asarray(place_xy, dtype=float)
     _, carry_z, place_z = heights(arm.world, item, plan)
+    if len(place_xy) == 3:  # onto a top of its own height: carried clear of it
+        place_z = place_xy[2] + plan.release_height + item.half_height + plan.grasp_height
+        carry_z = max(carry_z, place_z - plan.release_height + plan.clearance)
+        place_xy = place_xy[:2]
     shift, yaws = None, grasp_yaws(item, arm)
     if held is not None:
         held = np.asarray(held, dtype=float)
@@ -348,6 +368,23 @@ def plan_place(
             return -(rotation @ held)
 
         yaws = GRASP_YAWS
+    carries, swept = {}, []  # per leg its carry; how low the carries that swept the shelf went
+
+    def carried_clear(leg: _Leg) -> bool:
+        """The carry to the leg's first configuration, if its hand path stays over the shelf (the joint-space
+        carry cannot run into a joint limit, but it can dip)."""
+        if carry is None:
+            move = point_to_point("carry", start, leg.configurations[0], arm, plan.carry_time)
+        else:
+            move = shaped(carry, "carry", start, leg.configurations[0], arm)
+        reference = joint_reference(arm, move, at_rest(start), settings)
+        lowest = float(site_path(arm, reference, 40)[:, 2].min())
+        if lowest - item.half_height - plan.grasp_height < arm.world.surface("shelf").height + 0.01:
+            swept.append(lowest)
+            return False
+        carries[id(leg)] = move
+        return True
+
     leg = plan_leg(
         arm,
         start,
@@ -358,19 +395,13 @@ def plan_place(
         settings=settings,
         yaws=yaws,
         shift=shift,
+        accept=carried_clear,
     )
+    if leg is None and swept:
+        raise PlanningError(f"the carry would sweep the box {min(swept):.3f} m low over the shelf")
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down placement at the target")
-    if carry is None:
-        carry = point_to_point("carry", start, leg.configurations[0], arm, plan.carry_time)
-    else:
-        carry = shaped(carry, "carry", start, leg.configurations[0], arm)
-    # The joint-space carry cannot run into a joint limit, but its hand path must stay over the shelf.
-    reference = joint_reference(arm, carry, at_rest(start), settings)
-    lowest = float(site_path(arm, reference, 40)[:, 2].min())
-    if lowest - item.half_height - plan.grasp_height < arm.world.surface("shelf").height + 0.01:
-        raise PlanningError(f"the carry would sweep the box {lowest:.3f} m low over the shelf")
-    return PlaceMotions(carry, *leg.primitives)
+    return PlaceMotions(carries[id(leg)], *leg.primitives)
 
 
 def plan_move(

@@ -197,7 +197,7 @@ def tabletop_world(objects: tuple[GraspableObject, ...] = (DEFAULT_BOX,), robot:
     """``robot`` at the origin facing +x, a table in front and a shelf board on the table's right side, where
     the robot's tabletop layout puts them.
 
-    Objects start on the table, the first at the centre of the layout's object area, the others along y.
+    Objects start on the table, the first at the middle of the area the robot reaches, the others along y.
     """
     description = robots.describe(robot)
     layout = description.tabletop
@@ -219,7 +219,7 @@ def tabletop_world(objects: tuple[GraspableObject, ...] = (DEFAULT_BOX,), robot:
                 conaffinity=0,
             )
     _add_surface(spec, shelf, table.height, [0.35, 0.5, 0.65, 1])
-    start = [sum(layout.objects[0]) / 2, sum(layout.objects[1]) / 2]
+    start = [sum(layout.reach[0]) / 2, sum(layout.reach[1]) / 2]
     for index, item in enumerate(objects):
         _add_object(spec, item, [start[0], start[1] + 0.15 * index, table.height + item.half_height])
     return World(description, spec, tuple(objects), (table, shelf), layout)

@@ -245,17 +245,12 @@ def require_field(
     return value
 
 
-def optional_field(
-    mapping: dict[str, Any],
-    key: str,
-    kind: type | tuple[type, ...],
-    where: str,
-    error: type[BesmanError] = InputError,
-) -> Any:
-    """``mapping[key]`` checked as by :func:`require_field`, or None if it is absent or null."""
+def optional_field(mapping: dict[str, Any], key: str, *args: Any, **kwargs: Any) -> Any:
+    """``mapping[key]`` checked as by :func:`require_field` (which takes the other arguments: ``kind``,
+    ``where`` and ``error``), or None if it is absent or null."""
     if mapping.get(key) is None:
         return None
-    return require_field(mapping, key, kind, where, error)
+    return require_field(mapping, key, *args, **kwargs)
 
 
 def read_npz(

@@ -64,5 +64,13 @@ class TaskBounds:
         low = np.asarray(self.low, dtype=float)
         return (finite_array("taus", taus) - low) / np.maximum(np.asarray(self.high) - low, 1e-300)
 
+    def columns(self, names) -> TaskBounds:
+        """The box of the parameters ``names`` alone (a part of tau, in that order)."""
+        missing = [name for name in names if name not in self.names]
+        if missing:
+            raise InputError(f"no task parameter {missing[0]!r}; parameters: {', '.join(self.names)}")
+        index = [self.names.index(name) for name in names]
+        return TaskBounds(tuple(names), tuple(self.low[i] for i in index), tuple(self.high[i] for i in index))
+
     def as_dict(self) -> dict:
         return {name: [lo, hi] for name, lo, hi in zip(self.names, self.low, self.high, strict=True)}

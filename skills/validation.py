@@ -265,7 +265,7 @@ def checked(**checks: Check):
 
 def _public_name(target) -> str:
     """The name a user calls ``target`` by: ``robots.load`` if its subpackage exports it, else with its
-    module (``trees.gallery.run_demo``); looked up when called, once the package is imported."""
+    module (``tasks.running.run_demo``); looked up when called, once the package is imported."""
     package, _, module = target.__module__.removeprefix("besman.").partition(".")
     qualname = target.__qualname__.removesuffix(".__init__")
     exported = qualname.split(".")[0] in getattr(sys.modules.get(f"besman.{package}"), "__all__", ())

@@ -50,13 +50,13 @@ def failed_placements(pool: Path, taus, robot: str = "aila") -> list[tuple]:
     """The learned tree with ``pool``'s templates on ``robot`` at every tau of ``taus`` (each checked to be
     no training task of them), zero shot (the templates' means; online refinement off, as
     ``benchmarks/learned.py``'s zero-shot tree): the runs that did not succeed (the box farther than the
-    placement tolerance from its target, or the tree failing)."""
-    from besman.sim.pick_place import pick_place_bounds
+    placement tolerance from its target, tilted or off the shelf: the task's rule, or the tree failing)."""
     from besman.skills import SkillTemplatePool
+    from besman.tasks import task
+    from besman.tasks.running import run
     from besman.trees.files import loads_tree
-    from besman.trees.tabletop import run_on_tabletop
 
-    names = pick_place_bounds(robot).names
+    names = task("pick-place").bounds(robot).names
     templates = SkillTemplatePool(pool)
     for name in templates:
         columns = [names.index(n) for n in templates[name].box.names]
@@ -69,9 +69,10 @@ def failed_placements(pool: Path, taus, robot: str = "aila") -> list[tuple]:
     failed = []
     for tau in taus:
         tree = loads_tree(zero_shot, base=LEARNED_TREE.parent, source=LEARNED_TREE.name, pool=pool)
-        summary = run_on_tabletop(tree, {"object": tuple(tau[:2]), "place": tuple(tau[2:])}, robot=robot)
+        values = {"object": tuple(tau[:2]), "place": tuple(tau[2:])}
+        summary = run("pick-place", tree, values=values, robot=robot)
         error = summary.measurements["placement_error_m"]
-        if not summary.success or error is None:
+        if not summary.success:
             failed.append((tuple(tau), summary.status, error, summary.message))
     return failed
 

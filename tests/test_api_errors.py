@@ -16,7 +16,8 @@ import besman.sim as sim
 import besman.skills as skills
 import besman.trees as trees
 from besman.skills.errors import ArgumentTypeError, BesmanError, InputError, UnknownNameError
-from besman.trees.gallery import run_demo
+from besman.tasks.pick_place.episode import PickPlaceTask
+from besman.tasks.running import prepare, run, run_demo
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORDING = ROOT / "examples" / "data" / "subject1_run1.tsv"
@@ -26,7 +27,7 @@ TREE = ROOT / "examples" / "trees" / "grasp_then_place.yaml"
 @pytest.fixture(scope="module")
 def made():
     """What the cases call methods of, made once."""
-    template = skills.SkillTemplatePool(ROOT / "examples" / "pools" / "pick_place")["reach"]
+    template = skills.SkillTemplatePool(ROOT / "examples" / "pools" / "pick_place_aila")["reach"]
     world = sim.tabletop_world()
     return {
         "pa10": robots.load("pa10"),
@@ -49,10 +50,16 @@ CASES = [
     ("robots.load(123)", lambda m: robots.load(123), ["robots.load", "name", "123 (int)"]),
     ("run_demo(seed=-1)", lambda m: run_demo("sort", seed=-1), ["run_demo", "seed", "0..4294967295", "-1"]),
     (
-        "run_demo with an unknown option key",
-        lambda m: run_demo("sort", 1, {"robt": "aila"}),
-        ["run_demo", "options", "unknown option 'robt'", "did you mean 'robot'"],
+        "run_demo with an unknown task value",
+        lambda m: run_demo("pick-place", 1, values={"objekt": (0.5, -0.1)}),
+        ["--set objekt", "not a value of task pick-place", "its values: object, place"],
     ),
+    (
+        "run_demo(robt=..)",
+        lambda m: run_demo("sort", 1, robt="aila"),
+        ["run_demo", "'robt'", "did you mean 'robot'"],
+    ),
+    ("run_demo('nosuch')", lambda m: run_demo("nosuch"), ["unknown task 'nosuch'", "pick-place"]),
     ("pool.add('x')", lambda m: _pool().add("x"), ["SkillTemplatePool.add", "template", "'x' (str)"]),
     # Unknown keywords.
     ("run_demo(sede=1)", lambda m: run_demo("sort", sede=1), ["run_demo", "'sede'", "did you mean 'seed'"]),
@@ -97,7 +104,7 @@ CASES = [
     ("World.place_on(x='a')", lambda m: m["world"].place_on("box", "table", "a", 0.0), ["x", "'a' (str)"]),
     ("Arm.site_pose(shape)", lambda m: m["arm"].site_pose(np.zeros(2)), ["joint_positions", "(2,)"]),
     ("ThrowingConfig(n_weights='a')", lambda m: sim.ThrowingConfig(n_weights="a"), ["n_weights", "'a'"]),
-    ("PickPlaceTask('x')", lambda m: sim.PickPlaceTask("x"), ["PickPlaceTask", "config", "'x' (str)"]),
+    ("PickPlaceTask('x')", lambda m: PickPlaceTask("x"), ["PickPlaceTask", "config", "'x' (str)"]),
     # learning
     ("learning.load(5)", lambda m: learning.load(5), ["learning.load", "path", "5 (int)"]),
     ("segment('x')", lambda m: learning.segment("x"), ["segment", "demo", "'x' (str)"]),
@@ -119,8 +126,10 @@ CASES = [
     ("load_tree(5)", lambda m: trees.load_tree(5), ["load_tree", "path", "5 (int)"]),
     ("loads_tree(5)", lambda m: trees.loads_tree(5), ["loads_tree", "text", "5 (int)"]),
     ("dump_tree(5)", lambda m: trees.dump_tree(5), ["dump_tree", "root", "5 (int)"]),
-    ("tabletop_run(seed='a')", lambda m: trees.tabletop_run(TREE, seed="a"), ["seed", "'a' (str)"]),
-    ("run_on_tabletop(values='x')", lambda m: trees.run_on_tabletop(TREE, values="x"), ["values", "'x'"]),
+    # tasks
+    ("prepare(seed='a')", lambda m: prepare(tree=TREE, seed="a"), ["prepare", "seed", "'a' (str)"]),
+    ("run(values='x')", lambda m: run(tree=TREE, values="x"), ["run", "values", "'x'"]),
+    ("run(task=5)", lambda m: run(5), ["run", "task", "5 (int)"]),
     ("Wait(5)", lambda m: trees.Wait(5, duration=1.0), ["Wait", "name", "5 (int)"]),
     ("PlanMove(position NaN)", lambda m: trees.PlanMove("m", position=(math.nan, 0, 0)), ["position", "nan"]),
     ("grasp(attempts=0)", lambda m: trees.grasp(attempts=0), ["grasp", "attempts", "0"]),
@@ -151,7 +160,7 @@ def test_the_errors_are_the_builtins_callers_expect():
     with pytest.raises(ValueError, match="seed"):
         run_demo("sort", seed=-1)
     with pytest.raises(KeyError):
-        run_demo("sort", 1, {"robt": "aila"})
+        run_demo("nosuch")  # an unknown task
     assert issubclass(ArgumentTypeError, InputError) and issubclass(UnknownNameError, InputError)
     assert issubclass(ArgumentTypeError, ValueError)  # every besman error is a ValueError
 
@@ -159,7 +168,8 @@ def test_the_errors_are_the_builtins_callers_expect():
 def test_checked_functions_keep_their_signatures_and_names():
     """The checks are invisible to introspection: documentation and the tree-file table read the same
     signatures as before."""
-    assert list(inspect.signature(run_demo).parameters) == ["name", "seed", "options", "log", "observe"]
-    assert run_demo.__name__ == "run_demo" and "summary" in run_demo.__doc__
+    parameters = ["name", "seed", "robot", "values", "log", "observe"]
+    assert list(inspect.signature(run_demo).parameters) == parameters
+    assert run_demo.__name__ == "run_demo" and "Runs the demo of task" in run_demo.__doc__
     assert list(inspect.signature(trees.Wait).parameters) == ["name", "duration"]
     assert "n_weights" in inspect.signature(skills.DMPSettings).parameters

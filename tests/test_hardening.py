@@ -17,9 +17,10 @@ import pytest
 from besman.sim.throwing import BROKEN_REWARD, ThrowingTask
 from besman.skills.errors import InputError
 from besman.skills.writer_lock import OutputBusyError
+from besman.tasks import task
+from besman.tasks.running import run
 from besman.trees import TreeFileError, load_tree
 from besman.trees.runner import node_paths
-from besman.trees.tabletop import MEASUREMENTS
 from tests.helpers import run_cli
 
 TREES = Path(__file__).resolve().parents[1] / "examples" / "trees"
@@ -124,7 +125,7 @@ def test_a_broken_throw_never_scores_better_than_a_failing_one():
 @pytest.mark.parametrize(
     ("sets", "message"),
     [
-        (("objet=0.55,-0.1",), "--set objet: not a value of this run; valid: object, place"),
+        (("objet=0.55,-0.1",), "--set objet: not a value of task pick-place; its values: object, place"),
         (("place=0.5,-0.4", "place=0.6,-0.4"), "--set place: given twice"),
         (("object=nan,0.1",), "--set 'object=nan,0.1': the values must be finite numbers"),
     ],
@@ -204,19 +205,36 @@ def test_besman_without_a_command_prints_help_and_fails(capsys):
 def test_demo_json_is_json_alone_and_the_prose_suggests_a_next_step(capsys):
     code, out, _ = run_cli(capsys, "demo", "--json")
     summary = json.loads(out)
-    assert code == 0 and summary["success"] and summary["demo"] == "grasp-then-place"
-    assert summary["kind"] == "besman-run-summary" and set(summary["measurements"]) == set(MEASUREMENTS)
+    assert code == 0 and summary["success"] and summary["demo"] == summary["task"] == "pick-place"
+    measurements = task("pick-place").measurements
+    assert summary["kind"] == "besman-run-summary" and set(summary["measurements"]) == set(measurements)
     code, out, _ = run_cli(capsys, "demo")
     assert code == 0 and "next:" in out and "besman run examples/trees/grasp_then_place.yaml" in out
 
 
-def test_a_tree_that_places_nothing_reports_where_the_box_is_and_place_alone_fails_clearly(capsys):
+def test_the_halves_of_pick_and_place_are_judged_by_their_tasks_and_place_alone_fails_clearly(capsys):
+    """grasp.yaml is task pick (judged by the lift: the box in the hand, 5 cm up), place.yaml task place
+    (the box starts in the hand; judged by the placement); place.yaml on pick-place, where the box stands on
+    the table, fails at once and says why."""
     code, out, _ = run_cli(capsys, "run", str(TREES / "grasp.yaml"), "--seed", "1")
-    assert code == 0 and out.startswith("SUCCESS: box at (") and "placement error" not in out
+    assert code == 0 and out.startswith("SUCCESS: the box is in the hand, ") and "placement error" not in out
+    code, out, _ = run_cli(capsys, "run", str(TREES / "grasp.yaml"), "--seed", "1", "--json")
+    summary = json.loads(out)
+    assert (
+        code == 0
+        and summary["task"] == "pick"
+        and set(summary["measurements"]) == set(task("pick").measurements)
+    )
+    assert summary["measurements"]["held"] is True and summary["measurements"]["lift_m"] >= 0.045
     code, out, _ = run_cli(capsys, "run", str(TREES / "place.yaml"), "--seed", "1", "--json")
     summary = json.loads(out)
-    assert code == 1 and summary["measurements"]["placement_error_m"] is not None
-    assert summary["message"].startswith("not holding box")
+    assert code == 0 and summary["success"] and summary["task"] == "place"
+    assert summary["measurements"]["placement_error_m"] <= 0.02
+    alone = run("pick-place", load_tree(TREES / "place.yaml"), seed=1)  # the box on the table: not held
+    assert not alone.success and alone.failed_node is not None and alone.ticks == 1
+    assert alone.message.startswith("not holding box") and alone.measurements["placement_error_m"] > 0.02
+    with pytest.raises(InputError, match=r"place\.yaml: the tree is for task place, not pick-place"):
+        run("pick-place", TREES / "place.yaml")
 
 
 def test_written_files_honour_the_umask(tmp_path):
@@ -468,17 +486,17 @@ def _wrong_names():
     """Every public lookup by name, with a name that does not exist (evaluated lazily, one world shared)."""
     from besman import robots
     from besman.learning import segment
-    from besman.sim.blocks import block_bounds
+    from besman.sim.blocks import check_block
     from besman.sim.executor import Executor
-    from besman.sim.tasks import task_kind
     from besman.sim.world import tabletop_world
     from besman.skills import SkillTemplatePool
-    from besman.trees.gallery import demo
+    from besman.tasks.pick_place.blocks import block_bounds
+    from besman.tasks.running import run_demo
     from besman.trees.reference import node_reference
 
     world = tabletop_world()
     robot, executor = world.robot, Executor(world)
-    pool = SkillTemplatePool(Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place")
+    pool = SkillTemplatePool(Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place_aila")
     recording = load_recording()
     return {
         "robots.load": lambda: robots.load("nosuch"),
@@ -494,9 +512,11 @@ def _wrong_names():
         "Executor.arm_executor": lambda: executor.arm_executor("nosuch"),
         "SkillTemplatePool[]": lambda: pool["nosuch"],
         "SkillTemplatePool.remove": lambda: pool.remove("nosuch"),
-        "task_kind": lambda: task_kind("nosuch"),
+        "task": lambda: task("nosuch"),
         "block_bounds": lambda: block_bounds("nosuch"),
-        "demo": lambda: demo("nosuch"),
+        "check_block": lambda: check_block("nosuch"),
+        "run_demo": lambda: run_demo("nosuch"),
+        "run task value": lambda: run("pick-place", values={"nosuch": (0.5, 0.0)}),
         "node_reference": lambda: node_reference("nosuch"),
         "Demonstration.channel": lambda: recording.channel("nosuch"),
         "segment marker": lambda: segment(recording, marker="nosuch"),
@@ -522,7 +542,7 @@ def test_a_learned_tree_with_a_damaged_pool_entry_is_refused_before_its_first_ti
     import shutil
 
     pool = tmp_path / "pool"
-    shutil.copytree(Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place", pool)
+    shutil.copytree(Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place_aila", pool)
     arrays = pool / "carry.npz"
     data = bytearray(arrays.read_bytes())
     data[len(data) // 2] ^= 0xFF
@@ -537,7 +557,11 @@ def test_a_learned_tree_with_a_damaged_pool_entry_is_refused_before_its_first_ti
 
 
 def test_a_learned_tree_on_another_robot_than_its_pool_was_learned_on_is_refused_at_setup(capsys):
-    code, out, err = run_cli(capsys, "run", str(TREES / "grasp_then_place_learned.yaml"), "--robot", "ur5e")
+    """The tree's pool is the robot's own (``pick_place_{robot}``); AILA's pool given for the UR5e is
+    refused."""
+    aila_pool = TREES.parent / "pools" / "pick_place_aila"
+    argv = ["run", str(TREES / "grasp_then_place_learned.yaml"), "--robot", "ur5e", "--pool", str(aila_pool)]
+    code, out, err = run_cli(capsys, *argv)
     assert code == 2 and out == ""
     assert "was learned on 'aila', this run is on 'ur5e'" in err, err
 

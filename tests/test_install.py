@@ -15,6 +15,7 @@ import shutil
 import site
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -95,8 +96,39 @@ def test_the_wheel_and_sdist_pass_twine_and_the_installed_wheel_runs_from_an_emp
     assert result["status"] == "SUCCESS" and result["success"] is True
     assert Path(installed.besman("examples", "--copy", ".", cwd=tmp_path).strip()) == Path("examples")
     trees = sorted(str(p.relative_to(tmp_path)) for p in (tmp_path / "examples" / "trees").glob("*.yaml"))
-    assert len(trees) == 7
+    assert len(trees) == 8
     installed.besman("tree", "check", *trees, cwd=tmp_path)
+
+
+@pytest.mark.slow
+def test_every_shipped_tree_runs_from_the_installed_wheel_on_every_robot_its_task_fits(installed, tmp_path):
+    """``besman run examples/trees/NAME.yaml [--robot R]`` succeeds for every shipped tree file, on its task's
+    default robot and on every other robot the task fits, from an empty folder with the examples copied out
+    of the installed wheel (two runs at a time)."""
+    import besman.robots as robots
+    from besman.tasks import task
+    from besman.trees.files import tree_task
+
+    installed.besman("examples", "--copy", ".", cwd=tmp_path)
+    runs = [
+        (str(path.relative_to(tmp_path)), robot)
+        for path in sorted((tmp_path / "examples" / "trees").glob("*.yaml"))
+        for robot in robots.available()
+        if task(tree_task(path)).fits(robots.describe(robot))
+    ]
+    shipped = {str(path.relative_to(tmp_path)) for path in (tmp_path / "examples" / "trees").glob("*.yaml")}
+    assert {tree for tree, _ in runs} == shipped and len(runs) >= 2 * len(shipped)
+
+    def run_tree(tree_and_robot):
+        tree, robot = tree_and_robot
+        argv = [installed.venv / "bin" / "besman", "run", tree, "--robot", robot, "--json"]
+        result = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path, env=installed.environment)
+        summary = json.loads(result.stdout) if result.stdout.startswith("{") else {}
+        return tree, robot, result.returncode, summary.get("outcome", result.stderr[-300:])
+
+    with ThreadPoolExecutor(2) as pool:
+        failed = [run for run in pool.map(run_tree, runs) if run[2] != 0]
+    assert failed == []
 
 
 def readme_blocks() -> list[tuple[str, str, str | None, str]]:

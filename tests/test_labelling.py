@@ -3,17 +3,19 @@
 import numpy as np
 import pytest
 
-from besman.learning import Demonstration, Segment, load
-from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
-from besman.learning.imitation import imitate
-from besman.learning.labelling import (
+from besman.learning import (
+    Demonstration,
     DemonstrationSegment,
+    Segment,
     cluster,
     ground_truth_segments,
     grouping_accuracy,
+    imitate,
     label_few_shot,
+    load,
     segments_of,
 )
+from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
 from besman.learning.segmentation import segment
 from besman.skills.primitive import MovementPrimitive
 from besman.skills.transformation import minimum_jerk

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -39,21 +40,26 @@ from helpers import (
 from besman.cli import main
 from besman.learning.labelling import DemonstrationSegment
 from besman.learning.online import MAX_ROLLOUTS, refine_online, uncertainty
-from besman.learning.pipeline import LearnError, LearnSettings, _longest_run, learn
+from besman.learning.pipeline import LearnError, LearnSettings, learn
+from besman.learning.pipeline_labels import longest_run
 from besman.learning.retargeting import WorkspaceMap, fit_workspace_map, retarget
 from besman.sim import Executor, tabletop_world
-from besman.sim.blocks import BlockTask, BlockTaskConfig, Reward, prepare, rollout
+from besman.sim.blocks import Reward, rollout
 from besman.sim.primitives import point_to_point, shaped
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, SkillTemplatePool
 from besman.skills.writer_lock import WriterLock
+from besman.tasks import task
+from besman.tasks.pick_place.blocks import BlockTask, BlockTaskConfig
+from besman.tasks.pick_place.blocks import start as block_start
+from besman.tasks.running import prepare
 from besman.trees.files import loads_tree
 from besman.trees.manipulation import PlanGrasp, PlanPlace
-from besman.trees.tabletop import tabletop_run
 
 ROOT = Path(__file__).resolve().parents[1]
-COMMITTED_POOL = ROOT / "examples" / "pools" / "pick_place"
+COMMITTED_POOL = ROOT / "examples" / "pools" / "pick_place_aila"
 LEARNED_TREE = ROOT / "examples" / "trees" / "grasp_then_place_learned.yaml"
 SMALL = ("--tasks", "2", "--budget", "8")
+BLOCKS = task("pick-place").building_blocks("aila")  # what `besman learn` learns by default
 # Pick-and-place tasks (object x, y, place x, y) over the task's box that no pool here was trained on.
 UNSEEN_TAUS = (
     (0.5, -0.05, 0.58, -0.44),
@@ -112,7 +118,7 @@ def two_recordings(shared_recordings, tmp_path) -> Path:
 def test_an_empty_or_missing_demo_folder_is_refused(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     with pytest.raises(LearnError, match="no recordings"):
-        learn(tmp_path / "empty", tmp_path / "pool", progress=False)
+        learn(tmp_path / "empty", tmp_path / "pool", blocks=BLOCKS, progress=False)
     code, _, err = run_cli(
         capsys, "learn", "--demos", str(tmp_path / "missing"), "--out", str(tmp_path / "pool")
     )
@@ -124,7 +130,7 @@ def test_an_unreadable_recording_is_named(tmp_path):
     (tmp_path / "demos").mkdir()
     (tmp_path / "demos" / "broken.tsv").write_text("not a recording\n")
     with pytest.raises(LearnError, match=r"broken\.tsv"):
-        learn(tmp_path / "demos", tmp_path / "pool", progress=False)
+        learn(tmp_path / "demos", tmp_path / "pool", blocks=BLOCKS, progress=False)
     assert not (tmp_path / "pool").exists()
 
 
@@ -132,14 +138,14 @@ def test_recordings_without_hand_markers_are_refused(tmp_path):
     (tmp_path / "demos").mkdir()
     _csv(tmp_path / "demos" / "elbow.csv", {"Elbow": np.zeros((200, 3))})
     with pytest.raises(LearnError, match=r"elbow.csv: no hand markers Hand top"):
-        learn(tmp_path / "demos", tmp_path / "pool", progress=False)
+        learn(tmp_path / "demos", tmp_path / "pool", blocks=BLOCKS, progress=False)
 
 
 def test_a_recording_without_movement_is_refused_by_name(tmp_path):
     (tmp_path / "demos").mkdir()
     _csv(tmp_path / "demos" / "still.csv", _still_hand())
     with pytest.raises(LearnError, match=r"still\.csv: the segmentation finds no movement"):
-        learn(tmp_path / "demos", tmp_path / "pool", progress=False)
+        learn(tmp_path / "demos", tmp_path / "pool", blocks=BLOCKS, progress=False)
 
 
 def test_an_output_that_is_not_a_pool_is_refused_unless_forced(two_recordings, tmp_path):
@@ -147,11 +153,11 @@ def test_an_output_that_is_not_a_pool_is_refused_unless_forced(two_recordings, t
     out.mkdir()
     (out / "notes.txt").write_text("keep me")
     with pytest.raises(LearnError, match="not empty and not a pool learned by besman"):
-        learn(two_recordings, out, progress=False)
+        learn(two_recordings, out, blocks=BLOCKS, progress=False)
     assert snapshot(out) == {"notes.txt": b"keep me"}
     (tmp_path / "file").write_text("x")
     with pytest.raises(LearnError, match="the output is a file"):
-        learn(two_recordings, tmp_path / "file", progress=False)
+        learn(two_recordings, tmp_path / "file", blocks=BLOCKS, progress=False)
 
 
 def test_force_never_replaces_a_record_besman_did_not_write(two_recordings, tmp_path):
@@ -168,7 +174,7 @@ def test_force_never_replaces_a_record_besman_did_not_write(two_recordings, tmp_
             with pytest.raises(
                 LearnError, match=r"learn\.json: (not the record of a besman learn|not valid)"
             ):
-                learn(two_recordings, out, force=force, progress=False)
+                learn(two_recordings, out, blocks=BLOCKS, force=force, progress=False)
             assert snapshot(out) == before
 
 
@@ -189,40 +195,87 @@ def test_force_over_a_pool_of_other_settings_removes_only_its_stage_caches(small
     assert stale["reward"] != 123.0  # marked below: a search of the old settings
 
 
-def test_a_pool_for_another_robot_or_other_settings_is_refused_and_kept(two_recordings, tmp_path):
+def test_a_pool_for_another_task_or_robot_or_other_settings_is_refused_and_kept(two_recordings, tmp_path):
     out = tmp_path / "pool"
     (out / "work").mkdir(parents=True)
-    (out / "work" / "learn.json").write_text(
-        json.dumps({"schema_version": 1, "kind": "besman-learn", "robot": "pa10"})
-    )
     (out / "reach.json").write_text("{}")
-    before = snapshot(out)
-    with pytest.raises(LearnError, match="learned for robot 'pa10', not 'aila'"):
-        learn(two_recordings, out, progress=False)
-    (out / "work" / "learn.json").write_text(
-        json.dumps({"schema_version": 1, "kind": "besman-learn", "robot": "aila"})
-    )
-    before = snapshot(out)
+    for record, refusal in (
+        ({"task": "throw", "robot": "aila"}, "learned for task 'throw', not 'pick-place'"),
+        ({"task": "pick-place", "robot": "pa10"}, "learned for robot 'pa10', not 'aila'"),
+        ({"task": "pick-place", "robot": "aila"}, "other recordings or settings"),
+    ):
+        (out / "work" / "learn.json").write_text(
+            json.dumps({"schema_version": 1, "kind": "besman-learn", **record})
+        )
+        before = snapshot(out)
+        with pytest.raises(LearnError, match=refusal):
+            learn(two_recordings, out, blocks=BLOCKS, progress=False)
+        assert snapshot(out) == before
+
+
+def _claimed(two_recordings, out, monkeypatch, **options) -> dict:
+    """A learn into ``out`` stopped once it has claimed the output: its record."""
+    monkeypatch.setattr("besman.learning.pipeline._Run.segmentations", _stop)
+    with pytest.raises(KeyboardInterrupt):
+        learn(two_recordings, out, blocks=BLOCKS, progress=False, **options)
+    return json.loads((out / "work" / "learn.json").read_text())
+
+
+def _stop(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+def test_the_record_names_the_task_and_one_without_it_is_of_other_settings(
+    two_recordings, tmp_path, monkeypatch
+):
+    """A record written before learn.json named its task is not resumed: another learn of it needs --force."""
+    out = tmp_path / "pool"
+    record = _claimed(two_recordings, out, monkeypatch)
+    assert record["task"] == "pick-place" and record["robot"] == "aila"
+    del record["task"]
+    (out / "work" / "learn.json").write_text(json.dumps(record))
     with pytest.raises(LearnError, match="other recordings or settings"):
-        learn(two_recordings, out, progress=False)
-    assert snapshot(out) == before
-    with pytest.raises(LearnError, match=r"robot 'pa10': learning refines the blocks in the robot's"):
-        learn(two_recordings, out, LearnSettings(robot="pa10"), progress=False)
-    with pytest.raises(LearnError, match=r"robot: unknown robot 'r2d2'; available: aila, openarm, pa10, ur"):
-        learn(two_recordings, out, LearnSettings(robot="r2d2"), progress=False)
+        learn(two_recordings, out, blocks=BLOCKS, progress=False)
+    assert _claimed(two_recordings, out, monkeypatch, force=True)["task"] == "pick-place"
+
+
+def test_a_task_without_building_blocks_or_a_robot_it_does_not_fit_is_refused_in_one_line(
+    two_recordings, tmp_path, capsys
+):
+    learning = ["learn", "--demos", str(two_recordings), "--out", str(tmp_path / "pool")]
+    for options, refusal in (
+        (("--task", "NOPE"), r"unknown task 'NOPE'; tasks: .*\bpick-place\b.*\bpick\b"),
+        (
+            ("--task", "pick"),
+            r"task pick has no building blocks to learn; tasks that learn: (.*, )?pick-place\b",
+        ),
+        (("--robot", "pa10"), r"task pick-place does not run on 'pa10'; it runs on: aila, "),
+        (("--robot", "r2d2"), r"unknown robot 'r2d2'; available: aila, "),
+    ):
+        code, out, err = run_cli(capsys, *learning, *options)
+        assert code == 2 and out == "" and len(err.splitlines()) == 1, err
+        assert re.match("besman: error: " + refusal, err), err
+    assert not (tmp_path / "pool").exists()
 
 
 def test_roles_that_name_no_label_are_refused_before_any_work(
     two_recordings, shared_recordings, tmp_path, capsys
 ):
-    with pytest.raises(LearnError, match=r"reach='block9' names no cluster"):
-        learn(two_recordings, tmp_path / "pool", LearnSettings(roles=(("reach", "block9"),)), progress=False)
+    for roles, refusal in (
+        ((("reach", "block9"),), r"reach='block9' names no cluster"),
+        ((("lift", "block4"),), r"roles: unknown block 'lift'; blocks of pick-place: reach, carry, return"),
+    ):
+        with pytest.raises(LearnError, match=refusal):
+            learn(
+                two_recordings, tmp_path / "pool", LearnSettings(roles=roles), blocks=BLOCKS, progress=False
+            )
     example = str(shared_recordings / "subject1_run2.tsv")
     with pytest.raises(LearnError, match=r"carry='block5' is not a label of the examples"):
         learn(
             two_recordings,
             tmp_path / "pool",
             LearnSettings(examples=(example,), roles=(("carry", "block5"),)),
+            blocks=BLOCKS,
         )
     with pytest.raises(SystemExit, match="2"):  # argparse's own usage error
         main(["learn", "--demos", str(two_recordings), "--out", "x", "--roles", "reach"])
@@ -285,7 +338,7 @@ def test_shaped_keeps_only_what_fits_of_a_deviation_that_would_leave_a_joints_ra
 def test_retargeting_adds_the_mapped_human_deviation_to_the_direct_movement(size):
     world = tabletop_world()
     arm = Executor(world).arm
-    start = prepare(world, "reach", [0.55, -0.08])
+    start = block_start(world, "reach", [0.55, -0.08])
     human = CartesianDMP(execution_time=1.5)
     human.position.weights = np.random.default_rng(2).normal(scale=size, size=human.position.weights.shape)
     mapping = WorkspaceMap(yaw=0.7, scale=0.5, offset=(0.1, 0.2, 1.0))
@@ -329,6 +382,8 @@ def small_pool(tmp_path_factory) -> Path:
 def test_a_small_learn_writes_templates_with_provenance_and_figures(small_pool):
     pool = SkillTemplatePool(small_pool)
     assert sorted(pool) == ["carry", "reach", "return"] and not pool.problems()
+    assert {pool[name].task for name in pool} == {"pick-place/aila"}
+    assert json.loads((small_pool / "work" / "learn.json").read_text())["task"] == "pick-place"
     reach = pool["reach"]
     assert reach.box.names == ("object_x", "object_y") and len(reach.taus) == 2
     facts = reach.provenance
@@ -450,7 +505,7 @@ def test_online_refinement_stays_within_its_budget_and_keeps_what_it_found():
     template = SkillTemplatePool(COMMITTED_POOL)["return"]
     world = tabletop_world()
     tau = np.array([0.6, -0.36])
-    start = prepare(world, "return", tau)
+    start = block_start(world, "return", tau)
     result = refine_online(world, start, template, tau, seed=3)
     assert result.rollouts <= MAX_ROLLOUTS and uncertainty(template, tau) > 0
     assert result.best_reward >= result.mean_reward
@@ -489,6 +544,7 @@ def test_labels_from_annotated_examples_pick_the_same_instances_as_clustering(
         small_pool.parent / "demos",
         out,
         LearnSettings(tasks=2, budget=1, examples=(example,)),
+        blocks=BLOCKS,
         progress=False,
     )
     few_shot = json.loads((out / "work" / "labels.json").read_text())
@@ -514,8 +570,8 @@ def test_block_rollouts_on_ray_equal_those_in_local_processes():
 @pytest.mark.slow
 def test_the_learned_tree_refines_unsure_instances_in_a_copy_of_the_world_first():
     text = LEARNED_TREE.read_text().replace("refine_above: 0.08", "refine_above: 0.0")  # every instance
-    root = loads_tree(text, base=LEARNED_TREE.parent, source=LEARNED_TREE.name)
-    runner, _ = tabletop_run(root, {"object": (0.6, -0.12), "place": (0.47, -0.46)})
+    root = loads_tree(text, base=LEARNED_TREE.parent, source=LEARNED_TREE.name, pool=COMMITTED_POOL)
+    runner = prepare("pick-place", root, values={"object": (0.6, -0.12), "place": (0.47, -0.46)}).runner
     result = runner.run()
     assert result.status == "SUCCESS"
     planners = [node for node in root.iterate() if isinstance(node, PlanGrasp | PlanPlace)]
@@ -531,6 +587,6 @@ def test_a_blocks_instance_is_the_longest_run_of_adjacent_segments_with_its_labe
     demo = None  # the segments' demonstration plays no part in the choice
     spans = [(0, 10), (10, 20), (30, 35), (35, 60), (60, 70)]
     segments = [DemonstrationSegment(demo, a, b) for a, b in spans]
-    assert _longest_run(segments, ["a", "a", "a", "a", "b"], "a") == (2, 3)  # 30 samples beat 20
-    assert _longest_run(segments, ["a", "b", "a", "b", "a"], "a") == (0, 0)  # ties: the first
-    assert _longest_run(segments, ["b"] * 5, "a") is None
+    assert longest_run(segments, ["a", "a", "a", "a", "b"], "a") == (2, 3)  # 30 samples beat 20
+    assert longest_run(segments, ["a", "b", "a", "b", "a"], "a") == (0, 0)  # ties: the first
+    assert longest_run(segments, ["b"] * 5, "a") is None

@@ -14,7 +14,7 @@ from besman.robots.description import DescriptionError
 from besman.robots.gripper import measure_openings
 from besman.robots.robot import ROBOTS_DIR
 from besman.sim.executor import limit_violations
-from besman.trees.gallery import prepare_demo
+from besman.tasks.running import prepare
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +111,7 @@ def test_grasp_then_place_runs_on_the_openarm_ten_of_ten_within_its_limits(opena
     """The same tree as on AILA, at ten seeded configurations: every box placed, every command within the
     limits (its ranges included)."""
     for seed in range(10):
-        run = prepare_demo("grasp-then-place", seed, {"robot": "openarm"})
+        run = prepare("pick-place", seed=seed, robot="openarm")
         result = run.runner.run()
         summary = run.judge(result)
         assert summary.success, (seed, summary.message)
@@ -124,7 +124,7 @@ def test_the_handover_runs_on_the_openarm_ten_times_without_the_arms_touching(op
     """The handover tree, unchanged from AILA's, with the poses of the OpenArm's layout: the bar reaches its
     place within the tolerance, no tick with a contact between the arms, every command within the limits."""
     for seed in range(10):
-        run = prepare_demo("handover", seed, {"robot": "openarm"})
+        run = prepare("handover", seed=seed, robot="openarm")
         summary = run.judge(run.runner.run())
         assert summary.success, (seed, summary.status, summary.message)
         touching, closest = (summary.measurements[key] for key in ("ticks_arms_touching", "arms_closest_m"))

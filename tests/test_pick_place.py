@@ -4,7 +4,10 @@ import numpy as np
 import pytest
 
 from besman.sim.manipulation import PickPlacePlan
-from besman.sim.pick_place import PICK_PLACE_BOUNDS, PickPlaceTask
+from besman.tasks import task as find_task
+from besman.tasks.pick_place.episode import PickPlaceTask
+
+PICK_PLACE_BOUNDS = find_task("pick-place").bounds("aila")
 
 
 @pytest.fixture(scope="module")

@@ -1,10 +1,14 @@
 """Robot descriptions: loading a robot folder, and clear errors for bad ones."""
 
 import json
+import shutil
 
 import pytest
 
 import besman.robots as robots
+from besman.robots.description import DescriptionError
+from besman.robots.robot import ROBOTS_DIR
+from besman.tasks import task
 
 TINY_ARM = """
 <mujoco model="tiny">
@@ -107,3 +111,69 @@ def test_bad_descriptions_name_the_file_and_the_problem(tmp_path, desc, text, me
 def test_unknown_keyframe_lists_the_keyframes():
     with pytest.raises(ValueError, match="no keyframe 'ready'; keyframes: home"):
         robots.load("pa10").make_data("ready")
+
+
+# The UR5e's pick-and-place areas as its description held them before the tasks took their own numbers.
+UR5E_OBJECTS = {"x": [0.35, 0.52], "y": [-0.1, 0.05]}
+UR5E_PLACES = {"x": [0.32, 0.49], "y": [-0.45, -0.31]}
+
+
+def ur5e_copy(tmp_path, change) -> str:
+    """The UR5e's folder copied, its description renamed (so that no task knows it by name: its numbers
+    come from the file alone) and changed by ``change(raw)``."""
+    folder = tmp_path / "my_ur5e"
+    shutil.copytree(ROBOTS_DIR / "ur5e", folder)
+    path = folder / "description.json"
+    raw = json.loads(path.read_text())
+    raw["name"] = "my_ur5e"
+    change(raw)
+    path.write_text(json.dumps(raw))
+    return str(folder)
+
+
+def test_an_earlier_description_with_objects_and_places_in_the_tabletop_loads_with_its_bounds(tmp_path):
+    """``tabletop.objects`` is read as ``tabletop.reach`` and ``tabletop.places`` as
+    ``tasks.pick-place.places``: pick and place's bounds on it are the numbers it always had."""
+
+    def earlier(raw):
+        tabletop = raw["tabletop"]
+        del tabletop["reach"]
+        tabletop["objects"], tabletop["places"] = UR5E_OBJECTS, UR5E_PLACES
+
+    folder = ur5e_copy(tmp_path, earlier)
+    described = robots.describe(folder)
+    assert described.name == "my_ur5e"
+    assert described.tabletop.reach == ((0.35, 0.52), (-0.1, 0.05))
+    assert described.tasks == {"pick-place": {"places": UR5E_PLACES}}
+    bounds = task("pick-place").bounds(folder)
+    assert bounds.names == ("object_x", "object_y", "place_x", "place_y")
+    assert bounds.low == (0.35, -0.10, 0.32, -0.45) and bounds.high == (0.52, 0.05, 0.49, -0.31)
+    assert bounds == task("pick-place").bounds("ur5e")  # the shipped UR5e's, now the task's own numbers
+    assert robots.load(folder).arm().gripper is not None and task("pick-place").check_robot(folder) == folder
+
+
+@pytest.mark.parametrize(
+    ("places", "message"),
+    [
+        (
+            {"x": [0.32], "y": [-0.45, -0.31]},
+            r"tasks\.pick-place\.places\.x: expected a list of 2 finite numbers",
+        ),
+        ({"x": [0.32, 0.49]}, r"tasks\.pick-place\.places\.y: expected a list of 2 finite numbers"),
+        ("here", r"tasks\.pick-place\.places: expected"),
+        (None, r"tasks\.pick-place: missing 'places'"),
+        pytest.param(
+            {"x": [0.9, 1.2], "y": [-0.45, -0.31]},
+            r"tasks\.pick-place\.places: the area .* must lie on the board at 0\.9 m",
+            id="off the shelf",
+        ),
+    ],
+)
+def test_a_bad_pick_place_places_section_is_refused_naming_the_file_and_the_field(tmp_path, places, message):
+    def bad(raw):
+        raw["tasks"] = {"pick-place": {} if places is None else {"places": places}}
+
+    folder = ur5e_copy(tmp_path, bad)
+    with pytest.raises(DescriptionError, match=message) as error:
+        task("pick-place").bounds(folder)
+    assert f"{folder}/description.json: tasks.pick-place" in str(error.value)

@@ -16,8 +16,8 @@ from besman.skills.seeds import child_seed, cma_seed
 from besman.skills.tasks import TaskBounds
 from besman.skills.template import SkillTemplate
 from besman.skills.template_models import PerDimensionModel, _fit
+from besman.tasks import task
 from besman.trees import TreeFileError, loads_tree
-from besman.trees.tabletop import pick_place_settings
 from tests.test_tree_files import EXAMPLES
 
 TOP = 2**32 - 1  # the largest seed the parser accepts
@@ -81,8 +81,11 @@ def test_a_per_dimension_template_with_the_top_seed_predicts_and_samples_alike()
 
 @pytest.mark.parametrize("seed", EXTREMES)
 def test_a_tabletop_run_draws_the_same_configuration_for_every_seed(seed):
-    drawn = pick_place_settings({}, seed)
-    assert drawn == pick_place_settings({}, seed) and len(drawn["object"]) == len(drawn["place"]) == 2
+    pick_place = task("pick-place")
+    drawn, again = pick_place.resolve("aila", {}, seed), pick_place.resolve("aila", {}, seed)
+    assert drawn.keys() == again.keys() == {"object", "place"}
+    assert all(np.array_equal(drawn[name], again[name]) and len(drawn[name]) == 2 for name in drawn)
+    pick_place.bounds("aila").check(pick_place.join(drawn))
 
 
 @pytest.mark.parametrize(("seed", "ok"), [(0, True), (TOP, True), (-1, False), (TOP + 1, False)])

@@ -202,7 +202,7 @@ def _pool(tmp_path: Path) -> Path:
     pool = tmp_path / "pool"
     pool.mkdir()
     for suffix in (".json", ".npz"):
-        shutil.copy(EXAMPLES / "pools" / "pick_place" / f"reach{suffix}", pool)
+        shutil.copy(EXAMPLES / "pools" / "pick_place_aila" / f"reach{suffix}", pool)
     return pool
 
 
@@ -219,7 +219,7 @@ def test_a_special_pool_entry_is_refused_by_name(tmp_path, kind, suffix):
 @pytest.mark.parametrize("suffix", [".json", ".npz"])
 def test_a_special_primitive_is_refused_by_name(tmp_path, kind, suffix):
     for part in (".json", ".npz"):
-        shutil.copy(EXAMPLES / "pools" / "pick_place" / "work" / "shapes" / f"reach{part}", tmp_path)
+        shutil.copy(EXAMPLES / "pools" / "pick_place_aila" / "work" / "shapes" / f"reach{part}", tmp_path)
     path = special(tmp_path / f"reach{suffix}", kind)
     message = refusal(lambda: MovementPrimitive.load(tmp_path / "reach.json"))
     assert f"{path}: {WHAT[kind]} primitive" in message

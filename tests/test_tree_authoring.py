@@ -13,12 +13,13 @@ import pytest
 import yaml
 from helpers import run_cli
 
+from besman.tasks import task_names
+from besman.tasks.running import run
 from besman.trees.files import TreeFileError, loads_tree
 from besman.trees.idioms import grasp
 from besman.trees.manipulation import PlanGrasp
 from besman.trees.nodes import NODE_TYPES
 from besman.trees.reference import markdown_reference, tree_schema
-from besman.trees.tabletop import run_on_tabletop
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((ROOT / "examples" / "trees").glob("*.yaml"))
@@ -44,7 +45,7 @@ BAD_FILES = {
 
 @pytest.fixture(scope="module")
 def validator() -> jsonschema.Draft202012Validator:
-    schema = tree_schema()
+    schema = tree_schema(task_names())  # as besman tree schema prints it: a file's task is a registry name
     jsonschema.Draft202012Validator.check_schema(schema)
     return jsonschema.Draft202012Validator(schema)
 
@@ -108,11 +109,25 @@ def test_check_prints_one_line_per_file_with_its_problems_line_and_fails(tmp_pat
     assert lines[2] == f"{tmp_path / 'missing.yaml'}: no such file"
 
 
+def test_check_and_the_schema_refuse_a_task_the_registry_does_not_have(tmp_path, validator, capsys):
+    text = "besman_tree: 1\ntask: nosuch\nroot:\n  Wait: {name: w, duration: 1}\n"
+    path = tmp_path / "nosuch.yaml"
+    path.write_text(text)
+    code, out, _ = run_cli(capsys, "tree", "check", str(path))
+    assert code == 1 and out.startswith(f"{path}:2: task: no task 'nosuch'; tasks: ") and "pick-place" in out
+    assert list(validator.iter_errors(yaml.safe_load(text)))
+    known = path.with_name("known.yaml")
+    known.write_text(text.replace("nosuch", "pick-place"))
+    assert run_cli(capsys, "tree", "check", str(known))[:2] == (0, f"{known}: ok\n")
+    assert list(validator.iter_errors(yaml.safe_load(known.read_text()))) == []
+
+
 def test_schema_prints_or_writes_json_and_refuses_a_bad_output(tmp_path, capsys):
     code, out, _ = run_cli(capsys, "tree", "schema")
-    assert code == 0 and json.loads(out) == tree_schema()
+    assert code == 0 and json.loads(out) == tree_schema(task_names())
+    assert json.loads(out)["properties"]["task"]["enum"] == task_names()
     code, _, _ = run_cli(capsys, "tree", "schema", "--out", str(tmp_path / "tree.schema.json"))
-    assert code == 0 and json.loads((tmp_path / "tree.schema.json").read_text()) == tree_schema()
+    assert code == 0 and json.loads((tmp_path / "tree.schema.json").read_text()) == tree_schema(task_names())
     code, _, err = run_cli(capsys, "tree", "schema", "--out", str(tmp_path / "tree.txt"))
     assert code == 2 and "must end in .json" in err and not (tmp_path / "tree.txt").exists()
 
@@ -120,5 +135,6 @@ def test_schema_prints_or_writes_json_and_refuses_a_bad_output(tmp_path, capsys)
 def test_the_guides_tutorial_tree_runs():
     block = re.search(r"<!-- tutorial-tree -->\n```yaml\n(.*?)```", GUIDE.read_text(), re.S).group(1)
     tree = loads_tree(block, base=ROOT / "examples" / "trees", source="grasp_hold_place.yaml")
-    summary = run_on_tabletop(tree, {"object": (0.55, -0.08), "place": (0.54, -0.41)})
-    assert summary.status == "SUCCESS" and summary.measurements["placement_error_m"] < 0.02
+    summary = run("pick-place", tree, values={"object": (0.55, -0.08), "place": (0.54, -0.41)})
+    assert summary.status == "SUCCESS" and summary.success and summary.task == "pick-place"
+    assert summary.measurements["placement_error_m"] < 0.02

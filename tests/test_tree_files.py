@@ -3,10 +3,20 @@
 import textwrap
 from pathlib import Path
 
+import py_trees
 import pytest
 
 from besman.skills import DMP, MovementPrimitive
-from besman.trees import TreeFileError, describe, dump_tree, load_tree, loads_tree
+from besman.trees import (
+    TreeFileError,
+    describe,
+    dump_tree,
+    grasp,
+    grasp_then_place,
+    load_tree,
+    loads_tree,
+    place,
+)
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "trees"
 
@@ -32,6 +42,48 @@ def test_valid_files_round_trip_to_the_same_tree(name):
     again = loads_tree(dump_tree(root), base=EXAMPLES)
     assert describe(again) == describe(root)
     assert dump_tree(again) == dump_tree(root)
+
+
+def test_subtrees_built_in_code_are_written_as_the_nodes_they_declare():
+    root = py_trees.composites.Sequence(
+        "hand over",
+        memory=True,
+        children=[
+            grasp("take", object="bar", remap={"reach": "/shared/reach"}, arm="left", offset=[0.0, -0.08]),
+            place("put", object="bar", target="/task/place", arm="left"),
+            grasp_then_place(attempts=4),
+        ],
+    )
+    take, put, both = describe(root)["Sequence"]["children"]
+    assert take == {
+        "Grasp": {
+            "name": "take",
+            "object": "bar",
+            "namespace": "grasp",
+            "attempts": 2,
+            "remap": {"reach": "/shared/reach"},
+            "arm": "left",
+            "offset": [0.0, -0.08],
+        }
+    }
+    assert put == {
+        "Place": {
+            "name": "put",
+            "object": "bar",
+            "namespace": "place",
+            "target": "/task/place",
+            "arm": "left",
+        }
+    }
+    assert both == {
+        "GraspThenPlace": {
+            "name": "grasp then place",
+            "object": "box",
+            "target": "/task/place",
+            "attempts": 4,
+        }
+    }
+    assert dump_tree(loads_tree(dump_tree(root))) == dump_tree(root)
 
 
 def test_primitives_are_referenced_by_file_and_round_trip(tmp_path):

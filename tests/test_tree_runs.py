@@ -10,10 +10,13 @@ import numpy as np
 import pytest
 
 from besman.cli import main
-from besman.sim.pick_place import PICK_PLACE_BOUNDS
+from besman.tasks import TASKS, task
+from besman.tasks.running import replay, run
 from besman.trees.runner import read_log, statuses
 from besman.trees.summary import RunSummary
-from besman.trees.tabletop import MEASUREMENTS, pick_place_settings, replay, run_on_tabletop
+
+PICK_PLACE = task("pick-place")
+PICK_PLACE_BOUNDS = PICK_PLACE.bounds("aila")
 
 TREE = Path(__file__).resolve().parents[1] / "examples" / "trees" / "grasp_then_place.yaml"
 
@@ -37,12 +40,14 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
     assert code == 0
     # The one documented shape of every run's and demo's --json (besman.trees.summary).
     assert list(summary) == ["schema_version", "kind", *(item.name for item in fields(RunSummary))]
-    assert summary["schema_version"] == 1 and summary["kind"] == "besman-run-summary"
-    assert set(summary["measurements"]) == set(MEASUREMENTS) and summary["demo"] is None
+    assert summary["schema_version"] == 2 and summary["kind"] == "besman-run-summary"
+    assert set(summary["measurements"]) == set(PICK_PLACE.measurements) and summary["demo"] is None
+    assert summary["task"] == "pick-place"  # the task the file names
     assert summary["tree"] == str(TREE.resolve()) and summary["robot"] == "aila"
     assert summary["status"] == "SUCCESS" and summary["failed_node"] is None
     header, records, result = read_log(log)
     assert header["run"]["settings"] == {"object": [0.55, -0.10], "place": [0.50, -0.40]}
+    assert header["run"]["task"] == "pick-place" and header["run"]["values"] == header["run"]["settings"]
     final_box = np.array(records[-1]["robot"]["objects"]["box"])
     assert summary["measurements"]["placement_error_m"] == pytest.approx(
         np.linalg.norm(final_box[:2] - [0.50, -0.40]), abs=1e-4
@@ -57,7 +62,7 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
 @pytest.mark.slow
 def test_the_log_replays_to_the_same_statuses(tmp_path):
     log = tmp_path / "run.jsonl"
-    run_on_tabletop(TREE, {"object": (0.5, -0.05), "place": (0.58, -0.44)}, log=log)
+    run(tree=TREE, values={"object": (0.5, -0.05), "place": (0.58, -0.44)}, log=log)
     _, records, _ = read_log(log)
     assert replay(log) == list(statuses(records))
 
@@ -75,16 +80,18 @@ def test_tasks_show_prints_the_bounds(capsys):
     shown = json.loads(capsys.readouterr().out)
     assert shown["bounds"] == PICK_PLACE_BOUNDS.as_dict()
     assert main(["tasks", "show", "throwing", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["bounds"] == {"x": [-7.0, -1.0], "y": [-5.0, 1.0]}
+    bounds = json.loads(capsys.readouterr().out)["bounds"]
+    assert bounds == task("throwing").bounds("pa10").as_dict()
+    assert list(bounds.values()) == [[-7.0, -1.0], [-5.0, 1.0]]  # the target's x and y on the floor
     assert main(["tasks", "show", "juggling"]) == 2
-    unknown = "unknown task 'juggling'; tasks: pick-place, throwing, throwing-hardware"
-    assert unknown in capsys.readouterr().err
+    unknown = f"unknown task 'juggling'; tasks: {', '.join(TASKS)}"
+    assert unknown in capsys.readouterr().err and "pick-place, pick, place" in unknown
     assert main(["tasks"]) == 0
-    assert [line.split("\t")[0] for line in capsys.readouterr().out.splitlines()] == [
-        "pick-place",
-        "throwing",
-        "throwing-hardware",
-    ]
+    assert [line.split("\t")[0] for line in capsys.readouterr().out.splitlines()] == list(TASKS)
+    assert main(["tasks", "show", "pick-place"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert f"randomised: {PICK_PLACE.randomised}" in lines and f"success: {PICK_PLACE.success}" in lines
+    assert "default tree: grasp_then_place.yaml" in lines and "place_y\t[-0.48, -0.34]" in lines
     assert main(["tasks", "show", "throwing", "--robot", "ur5e"]) == 2
     assert "task throwing does not run on 'ur5e'; it runs on: pa10" in capsys.readouterr().err
 
@@ -101,16 +108,41 @@ def test_tree_show_and_render(capsys, tmp_path):
 
 
 def test_seeded_settings_are_reproducible_and_in_bounds():
-    first = pick_place_settings({}, seed=4)
-    assert first == pick_place_settings({}, seed=4)
-    tau = np.r_[first["object"], first["place"]]
+    first = PICK_PLACE.resolve("aila", {}, seed=4)
+    tau = PICK_PLACE.join(first)
+    np.testing.assert_array_equal(tau, PICK_PLACE.join(PICK_PLACE.resolve("aila", {}, seed=4)))
     PICK_PLACE_BOUNDS.check(tau)
+    assert not np.array_equal(tau, PICK_PLACE.join(PICK_PLACE.resolve("aila", {}, seed=5)))
+
+
+def test_without_a_seed_a_run_takes_the_tasks_default_configuration():
+    """No longer drawn: AILA's documented configuration, other robots the middle of their areas."""
+    values = PICK_PLACE.resolve("aila", {}, None)
+    assert PICK_PLACE.join(values).tolist() == [0.55, -0.08, 0.54, -0.41]
+    ur5e = PICK_PLACE.bounds("ur5e")
+    middle = (np.asarray(ur5e.low) + np.asarray(ur5e.high)) / 2
+    np.testing.assert_allclose(PICK_PLACE.join(PICK_PLACE.resolve("ur5e", {}, None)), middle)
+    given = PICK_PLACE.resolve("aila", {"place": (0.5, -0.4)}, None)
+    assert PICK_PLACE.join(given).tolist() == [0.55, -0.08, 0.5, -0.4]
 
 
 @pytest.mark.slow
 def test_grasp_then_place_succeeds_in_40_random_configurations():
-    """>= 95 % of 40 seeded configurations drawn from the task's bounds, with real contact grasps."""
-    summaries = [run_on_tabletop(TREE, seed=seed) for seed in range(40)]
-    successes = [s for s in summaries if s.status == "SUCCESS"]
-    assert len(successes) >= 38, [(i, s.message) for i, s in enumerate(summaries) if s.status != "SUCCESS"]
-    assert all(s.measurements["placement_error_m"] < 0.02 for s in successes)
+    """>= 95 % of 40 seeded configurations drawn from the task's bounds, with real contact grasps, succeed
+    by the task's rule (the tree succeeds and the box stands upright on the shelf within 2 cm)."""
+    summaries = [run(tree=TREE, seed=seed) for seed in range(40)]
+    successes = [s for s in summaries if s.success]
+    assert len(successes) >= 38, [(i, s.status, s.outcome) for i, s in enumerate(summaries) if not s.success]
+    assert all(s.status == "SUCCESS" and s.measurements["placement_error_m"] < 0.02 for s in successes)
+    assert all(s.measurements["tilt_deg"] < 10 for s in successes)
+
+
+@pytest.mark.slow
+def test_a_pool_given_on_the_command_line_is_named_in_the_summary(capsys):
+    """``--pool`` replaces the pools the tree names: the summary's tree says so."""
+    learned = TREE.with_name("grasp_then_place_learned.yaml")
+    pool = (TREE.parents[1] / "pools" / "pick_place_aila").resolve()
+    assert main(["run", str(learned), "--pool", str(pool), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["success"] and summary["task"] == "pick-place"
+    assert summary["tree"] == f"{learned.resolve()} (--pool {pool})"

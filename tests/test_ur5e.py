@@ -14,8 +14,9 @@ from besman.robots import menagerie
 from besman.robots.description import DescriptionError
 from besman.robots.gripper import measure_openings
 from besman.sim.executor import limit_violations
-from besman.sim.pick_place import pick_place_bounds
-from besman.trees.gallery import prepare_demo, sort_places
+from besman.tasks import task
+from besman.tasks.running import prepare
+from besman.tasks.sort import places as sort_places
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +82,11 @@ def test_bad_arm_and_gripper_descriptions_name_the_field(tmp_path):
         (("arms", "arm", "groups"), ["wings"], "arms.arm.groups: no group 'wings'"),
         (("attach",), [{"model": {"menagerie": "nowhere/x.xml"}, "site": "a", "prefix": "p/"}], "not found"),
         (("mount", "position"), [0, 0], "mount.position: expected a list of 3 finite numbers"),
-        (("tabletop", "objects", "x"), [0.9, 1.2], "tabletop.objects: the area must lie on the table"),
+        (
+            ("tabletop", "reach", "x"),
+            [0.9, 1.2],
+            r"tabletop.reach: the area x \[0.9, 1.2\], .* must lie on the board at 0.78 m",
+        ),
         (("options", "cone"), "round", "options.cone: one of pyramidal, elliptic"),
     ]
     for path, value, message in cases:
@@ -102,12 +107,17 @@ def test_tasks_show_the_pick_and_place_box_of_each_robot(capsys):
     code, out, _ = run_cli(capsys, "robots", "show", "ur5e", "--json")
     table = json.loads(out)
     assert code == 0 and table["arms"]["arm"]["gripper"]["actuator"] == "gripper/fingers_actuator"
-    bounds = pick_place_bounds("ur5e")
+    bounds = task("pick-place").bounds("ur5e")
     assert bounds.low == (0.35, -0.10, 0.32, -0.45) and bounds.high == (0.52, 0.05, 0.49, -0.31)
     code, out, _ = run_cli(capsys, "tasks", "show", "pick-place", "--robot", "ur5e", "--json")
     shown = json.loads(out)
     assert code == 0 and shown["robot"] == "ur5e" and shown["bounds"] == bounds.as_dict()
-    assert shown["layout"]["shelf"] == {"height": 0.9, "x": [0.15, 0.6], "y": [-0.55, -0.25]}
+    assert shown["areas"] == {
+        "objects": {"x": [0.35, 0.52], "y": [-0.10, 0.05]},
+        "places": {"x": [0.32, 0.49], "y": [-0.45, -0.31]},
+    }
+    shelf = robots.describe("ur5e").tabletop.shelf  # the places lie on it
+    assert (shelf.height, shelf.x, shelf.y) == (0.9, (0.15, 0.6), (-0.55, -0.25))
 
 
 def test_the_demos_next_step_on_the_ur5e_runs_there(capsys, tmp_path):
@@ -125,7 +135,7 @@ def test_the_demos_next_step_on_the_ur5e_runs_there(capsys, tmp_path):
 
 
 def _run(name: str, seed: int) -> tuple[dict, list[str]]:
-    prepared = prepare_demo(name, seed, {"robot": "ur5e"})
+    prepared = prepare(name, seed=seed, robot="ur5e")
     summary = prepared.judge(prepared.runner.run())
     executor = prepared.runner.executor
     return summary, limit_violations(executor.log, executor)
@@ -136,7 +146,7 @@ def test_grasp_then_place_on_the_ur5e_ten_of_ten_within_its_limits():
     """The issue's acceptance on seeds no other test or tuning used: every box within 2 cm of its target,
     every commanded motion of every episode within the UR5e's velocity, acceleration and jerk limits."""
     for seed in range(1000, 1010):
-        summary, violations = _run("grasp-then-place", seed)
+        summary, violations = _run("pick-place", seed)
         assert summary.success and summary.measurements["placement_error_m"] <= 0.02, (seed, summary.message)
         assert violations == [], (seed, violations)
 
@@ -198,16 +208,15 @@ def test_the_viewer_shows_whichever_robot_runs():
     import argparse
     import urllib.request
 
-    from besman.commands.trees import _watched_demo
-    from besman.trees.gallery import demo
+    from besman.commands.viewing import run_task
 
     args = argparse.Namespace(
-        view=True, host="127.0.0.1", port=0, allow_origin=[], speed=1000.0, seed=3, log=None
+        view=True, host="127.0.0.1", port=0, allow_origin=[], speed=1000.0, seed=3, robot="ur5e"
     )
-    summary, viewers = _watched_demo(args, demo("sort"), {"robot": "ur5e"})
+    summary, viewers = run_task(args, task=task("sort"), values={}, log=None, demo="sort")
     try:
-        assert summary.success and summary.robot == "ur5e"
-        model = viewers[0].scene.mj_model
+        assert summary.success and summary.robot == "ur5e" and summary.demo == "sort"
+        model = viewers[0].viewer.scene.mj_model
         assert model.nmesh > 0 and model.body("wrist_3_link").id > 0
         with urllib.request.urlopen(viewers[0].url, timeout=10) as page:
             assert page.status == 200
@@ -225,7 +234,7 @@ def test_the_ur5e_pool_learned_from_people_places_zero_shot_at_thirty_unseen_tas
     trained on, with the templates' means alone: >= 90 % within 2 cm."""
     from helpers import failed_placements
 
-    bounds = pick_place_bounds("ur5e")
+    bounds = task("pick-place").bounds("ur5e")
     taus = np.random.default_rng(2026).uniform(bounds.low, bounds.high, (30, 4)).round(4)
     failed = failed_placements(UR5E_POOL, taus, robot="ur5e")
     assert len(failed) <= 3, failed

@@ -12,8 +12,8 @@ import pytest
 from PIL import Image
 
 from besman.sim.viewer import MAX_FRAME_GAP, Viewer, headless_chromium
+from besman.tasks.running import prepare, run
 from besman.trees import grasp_then_place
-from besman.trees.tabletop import tabletop_run
 from besman.trees.watching import Watch
 from tests.helpers import run_cli, serve_then_interrupt
 
@@ -100,7 +100,9 @@ def test_a_running_grasp_then_place_is_seen_in_the_browser_with_its_tree():
 
     from playwright.sync_api import sync_playwright
 
-    runner, _ = tabletop_run(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, seed=0)
+    runner = prepare(
+        "pick-place", grasp_then_place(), values={"object": (0.55, -0.08), "place": (0.54, -0.41)}, seed=0
+    ).runner
     world = runner.executor.world
     viewer = Viewer(world.model)
     runner.observe = Watch(viewer, speed=0.5)  # about 20 s of wall time
@@ -213,12 +215,12 @@ def test_a_logged_run_replays_scene_and_tree_on_one_timeline(tmp_path):
 
     from playwright.sync_api import sync_playwright
 
-    from besman.trees.tabletop import run_on_tabletop
+    from besman.tasks.running import executor_of
     from besman.trees.watching import Replay
 
     log = tmp_path / "run.jsonl"
-    run_on_tabletop(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, log=log)
-    replay = Replay(log, {"port": 0})
+    run("pick-place", grasp_then_place(), values={"object": (0.55, -0.08), "place": (0.54, -0.41)}, log=log)
+    replay = Replay(log, executor_of, {"port": 0})
     try:
         middle = len(replay.records) // 2
         replay.slider.value = middle
@@ -300,11 +302,12 @@ def test_the_browser_runs_pauses_breaks_and_moves_the_task():
 
     from playwright.sync_api import sync_playwright
 
-    from besman.trees.session import Session
+    from besman.tasks.session import Session
 
     session = Session(
         grasp_then_place(),
         {"object": (0.55, -0.08), "place": (0.54, -0.41)},
+        task="pick-place",
         speed=2.0,
         viewer_options={"port": 0},
     )
@@ -341,6 +344,9 @@ def test_the_browser_runs_pauses_breaks_and_moves_the_task():
             page.wait_for_function("document.body.innerText.includes('SUCCESS: succeeded')", timeout=60_000)
             browser.close()
         assert session.result.status == "SUCCESS"
+        judged = session.judge(session.result)  # the task's rule, at the dragged object's run
+        assert judged.success and judged.task == "pick-place"
+        np.testing.assert_allclose(judged.settings["object"], moved, atol=1e-6)
         perceived = next(
             message
             for record in session.runner.records
@@ -360,13 +366,13 @@ def test_two_browsers_see_one_run_and_one_may_leave():
     as the same run unwatched) and the other page sees it end, showing the server's last tick."""
     from playwright.sync_api import sync_playwright
 
+    from besman.tasks.session import Session
     from besman.trees.runner import statuses
-    from besman.trees.session import Session
 
     values = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
-    unwatched, _ = tabletop_run(grasp_then_place(), values)
+    unwatched = prepare("pick-place", grasp_then_place(), values=values).runner
     unwatched.run()
-    session = Session(grasp_then_place(), values, speed=1.0, viewer_options={"port": 0})
+    session = Session(grasp_then_place(), values, task="pick-place", speed=1.0, viewer_options={"port": 0})
     try:
         with sync_playwright() as playwright:
             browser = headless_chromium(playwright, CHROMIUM)
@@ -407,7 +413,9 @@ def test_overlays_and_the_tree_panel_follow_a_template_run():
     from besman.trees.leaves import ExecutePrimitive, InstantiateSkillTemplate
     from besman.trees.runner import Runner
 
-    runner, _ = tabletop_run(grasp_then_place(), {"object": (0.55, -0.08), "place": (0.54, -0.41)}, seed=0)
+    runner = prepare(
+        "pick-place", grasp_then_place(), values={"object": (0.55, -0.08), "place": (0.54, -0.41)}, seed=0
+    ).runner
     arm, box = runner.executor.arm, runner.executor.world.objects["box"]
     taus = np.array([[0.5, -0.12], [0.6, -0.12], [0.5, 0.0], [0.6, 0.0]])
     reaches = [plan_pick(arm, arm.measured().copy(), box, tau, PickPlacePlan()).reach for tau in taus]

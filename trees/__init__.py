@@ -5,10 +5,10 @@ given to ``BehaviourTree.setup(executor=...)``, using the blackboard by declared
 (:mod:`besman.trees.base`); subtree idioms (:func:`grasp`, :func:`place`, :func:`grasp_then_place`,
 :mod:`besman.trees.idioms`) compose them; :func:`load_tree` reads YAML tree files (node types in
 :mod:`besman.trees.nodes`); :class:`Runner` ticks a tree in lockstep with the simulation and logs every
-tick; :mod:`besman.trees.tabletop` runs trees on a robot's tabletop and :mod:`besman.trees.gallery` the
-demos, each run ending in a :class:`RunSummary`; :mod:`besman.trees.watching` shows a run in the browser
-viewer. A file names Python templates and pools only as registered (:func:`register_template`,
-:func:`register_pool`) or in modules the caller allows (:mod:`besman.trees.registry`).
+tick, each run ending in a :class:`RunSummary` (the tasks that set runs up and judge them are
+:mod:`besman.tasks`); :mod:`besman.trees.watching` shows a run in the browser viewer. A file names
+Python templates and pools only as registered (:func:`register_template`, :func:`register_pool`) or in
+modules the caller allows (:mod:`besman.trees.registry`).
 """
 
 from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
@@ -21,7 +21,6 @@ from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanP
 from besman.trees.registry import register_pool, register_template
 from besman.trees.runner import Runner, RunResult, read_log
 from besman.trees.summary import RunSummary
-from besman.trees.tabletop import run_on_tabletop, tabletop_run
 from besman.trees.throwing import AimThrow, Throw
 from besman.trees.timing import Deadline, SimTimeout, Wait
 
@@ -61,6 +60,4 @@ __all__ = [
     "register_pool",
     "register_template",
     "return_home",
-    "run_on_tabletop",
-    "tabletop_run",
 ]

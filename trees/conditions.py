@@ -16,7 +16,7 @@ from typing import ClassVar
 import numpy as np
 from py_trees.common import Access, Status
 
-from besman.sim.pick_place import PLACE_TOLERANCE
+from besman.sim.outcomes import PLACE_TOLERANCE
 from besman.sim.proximity import ArmProximity
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
@@ -42,7 +42,8 @@ class ObjectGrasped(SimulationBehaviour):
 
 
 class ObjectAt(SimulationBehaviour):
-    """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``?"""
+    """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``? A target
+    is a place's (x, y), or (x, y, z) with z the top the object is set down on: its bottom is judged there."""
 
     roles: ClassVar = {"target": Access.READ}
     parameters: ClassVar = {"object": "str", "position": "floats[2|3]", "tolerance": "float>0"}
@@ -69,7 +70,9 @@ class ObjectAt(SimulationBehaviour):
             self.position if self.position is not None else np.asarray(self.blackboard.get("target"), float)
         )
         item = self.object
-        where = self.executor.world.object_pose(item).position[: len(target)]
+        where = self.executor.world.object_pose(item).position[: len(target)].copy()
+        if self.position is None and len(target) == 3:
+            where[2] -= self.executor.world.objects[item].half_height
         distance = float(np.linalg.norm(where - target))
         self.feedback_message = f"{item} is {distance * 100:.1f} cm from {np.round(target, 3).tolist()}"
         return Status.SUCCESS if distance <= self.tolerance else Status.FAILURE

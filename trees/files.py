@@ -3,6 +3,7 @@
 py_trees has no file format of its own. A besman tree file is::
 
     besman_tree: 1                 # the format's version
+    task: pick-place               # the task it runs on (besman tasks lists them; a subtree may leave it out)
     root:                          # one node
       Sequence:                    # a node is a mapping with one key, its type ...
         name: tidy up              # ... whose value holds its parameters
@@ -23,7 +24,8 @@ Node types (:data:`~besman.trees.nodes.NODE_TYPES`, derived from the classes): t
 parameters (:mod:`besman.trees.reference`). Primitives are referenced by the path of their JSON file;
 templates by ``MODULE:NAME`` (an object with ``instantiate(tau)``), or a pool and a ``template_name``:
 ``pool:`` names a skill template pool directory (relative to the tree file,
-:class:`~besman.skills.pool.SkillTemplatePool`) or a ``MODULE:NAME`` mapping of names to templates. A
+:class:`~besman.skills.pool.SkillTemplatePool`; ``{robot}`` in it is the name of the robot the tree runs on,
+``../pools/pick_place_{robot}``) or a ``MODULE:NAME`` mapping of names to templates. A
 ``MODULE:NAME`` is registered in Python or in a module the user allows (``allow_modules``); a file alone
 never makes anything import (:mod:`besman.trees.registry`). Leaves with blackboard roles take ``namespace``
 and ``remap`` (role -> key).
@@ -55,6 +57,7 @@ from besman.trees.registry import UNIMPORTED, allowed_modules, resolve
 from besman.trees.timing import SimTimeout
 
 FORMAT_VERSION = 1
+ROBOT_FIELD = "{robot}"  # in a pool's path: the name of the robot the tree is built for
 # Bounds checked before a file is built: a tree file is a few kilobytes; these leave room for generated ones
 # and refuse what would hang or exhaust memory (deep nesting overflows Python's stack).
 MAX_FILE_BYTES = 1_000_000
@@ -65,14 +68,19 @@ class TreeFileError(BesmanError):
     """A tree file is invalid; the message starts with ``file:line: path:``."""
 
 
-@checked(path=PATH, pool=optional(PATH))
+@checked(path=PATH, pool=optional(PATH), robot=optional(text("a robot's name")))
 def load_tree(
-    path: str | Path, *, pool: str | Path | None = None, allow_modules: Iterable[str] = ()
+    path: str | Path,
+    *,
+    pool: str | Path | None = None,
+    allow_modules: Iterable[str] = (),
+    robot: str | None = None,
 ) -> py_trees.behaviour.Behaviour:
     """Builds the tree of a file; a :class:`TreeFileError` names the file, line and path of any problem.
-    ``pool`` (a pool directory) replaces every pool the file names (``besman run --pool``); the file's
+    ``pool`` (a pool directory) replaces every pool the file names (``besman run --pool``); ``robot``, the
+    name of the robot it is built for, replaces ``{robot}`` in the pool paths it names; the file's
     ``MODULE:NAME`` references are registered ones or in ``allow_modules``, imported here."""
-    builder = _Builder(_pool_override(pool), allowed_modules(allow_modules), imports=True)
+    builder = _Builder(_pool_override(pool), allowed_modules(allow_modules), imports=True, robot=robot)
     return builder.file(Path(path), remap={}, stack=())
 
 
@@ -91,13 +99,26 @@ def loads_tree(
     return builder.document(text, Path(base) / source, remap={}, stack=())
 
 
-@checked(path=PATH)
-def check_tree(path: str | Path, *, allow_modules: Iterable[str] = ()) -> list[str]:
+@checked(path=PATH, tasks=optional(instance(Iterable, "task names")))
+def check_tree(
+    path: str | Path, *, allow_modules: Iterable[str] = (), tasks: Iterable[str] | None = None
+) -> list[str]:
     """Checks a file as :func:`load_tree` does, but imports nothing: a ``MODULE:NAME`` of an allowed module
-    is checked for its form only. Returns those references (left to be imported when the tree is built)."""
-    builder = _Builder(None, allowed_modules(allow_modules), imports=False)
+    is checked for its form only; with ``tasks`` (the registry's names), the task the file names must be one
+    of them. Returns the references left to be imported when the tree is built."""
+    builder = _Builder(None, allowed_modules(allow_modules), imports=False, tasks=tasks)
     builder.file(Path(path), remap={}, stack=())
     return list(dict.fromkeys(builder.unimported))
+
+
+@checked(path=PATH)
+def tree_task(path: str | Path) -> str | None:
+    """The task a tree file names (its top-level ``task``), None if it names none (a subtree)."""
+    path = Path(path)
+    text = read_bytes(path, MAX_FILE_BYTES, what="tree file", error=TreeFileError).decode("utf-8", "replace")
+    builder = _Builder(None, frozenset(), imports=False)
+    top = builder.top(text, path)
+    return None if "task" not in top else builder._scalar(top["task"], path, "task")
 
 
 def _pool_override(pool: str | Path | None) -> Path | None:
@@ -107,9 +128,18 @@ def _pool_override(pool: str | Path | None) -> Path | None:
 
 
 class _Builder:
-    def __init__(self, pool: Path | None, allowed: frozenset[str], imports: bool) -> None:
+    def __init__(
+        self,
+        pool: Path | None,
+        allowed: frozenset[str],
+        imports: bool,
+        tasks: Iterable[str] | None = None,
+        robot: str | None = None,
+    ) -> None:
         self.pool = pool  # replaces every pool the files name
         self.allowed, self.imports = allowed, imports  # modules that MODULE:NAME may name; import them?
+        self.tasks = None if tasks is None else tuple(tasks)  # the names a file's task may have (None: any)
+        self.robot = robot  # the robot's name that replaces {robot} in pool paths
         self.unimported: list[str] = []  # the references left to import (not self.imports)
 
     def file(self, path: Path, remap: Mapping[str, str], stack: tuple[Path, ...]):
@@ -127,6 +157,18 @@ class _Builder:
         return self.document(text, path, remap, (*stack, resolved))
 
     def document(self, text: str, path: Path, remap: Mapping[str, str], stack: tuple[Path, ...]):
+        top = self.top(text, path)
+        if "task" in top:
+            task = self._scalar(top["task"], path, "task")
+            if self.tasks is not None and task not in self.tasks:
+                raise TreeFileError(
+                    f"{path}:{self._line(top['task'])}: task: no task {task!r}; tasks: "
+                    + ", ".join(self.tasks)
+                )
+        return self.node(top["root"], path, "root", remap, stack)
+
+    def top(self, text: str, path: Path) -> dict:
+        """The top-level mapping of a file's text, checked: its version, known fields and a root."""
         if len(text) > MAX_FILE_BYTES:
             raise TreeFileError(f"{path}: larger than {MAX_FILE_BYTES} characters; not a tree file")
         try:
@@ -146,13 +188,13 @@ class _Builder:
             raise TreeFileError(
                 f"{path}:{self._line(version or node)}: besman_tree: expected {FORMAT_VERSION}"
             )
-        unknown = set(top) - {"besman_tree", "root"}
+        unknown = set(top) - {"besman_tree", "task", "root"}
         if unknown:
             key = sorted(unknown)[0]
             raise TreeFileError(f"{path}:{self._line(top[key])}: unknown top-level field {key!r}")
         if "root" not in top:
             raise TreeFileError(f"{path}:{self._line(node)}: missing 'root'")
-        return self.node(top["root"], path, "root", remap, stack)
+        return top
 
     @staticmethod
     def _check_events(text: str, path: Path) -> None:
@@ -331,6 +373,14 @@ class _Builder:
                 raise self._error(node, path, where, str(error)) from None
             return primitive
         if kind == "pool" and (self.pool is not None or ":" not in text):
+            if ROBOT_FIELD in text and self.pool is None:
+                if self.robot is None:
+                    if not self.imports:  # checked for its form: which robot's pool is known when it runs
+                        return UNIMPORTED
+                    raise self._error(
+                        node, path, where, f"{text!r} names {ROBOT_FIELD}: build it for a robot"
+                    )
+                text = text.replace(ROBOT_FIELD, self.robot)
             directory = self.pool or path.parent / text  # a pool directory, relative to the tree file
             if not directory.is_dir():
                 raise self._error(node, path, where, f"no pool directory {str(directory)!r}")

@@ -12,13 +12,17 @@ Each subtree keeps its blackboard in one skill namespace; its planning leaf writ
 - :func:`grasp_then_place` - the two, retried: if the object slips out of the hand, the retry finds it not
   grasped and grasps it again where it now lies.
 
-The factories record how they were called (``besman_spec``), so tree files can name them as nodes
-(``Grasp``, ``Place``, ``GraspThenPlace``) and trees built in code can be written back as files.
+Each factory declares the tree-file node it is (``Grasp``, ``Place``, ``ReturnHome``, ``GraspThenPlace``)
+with its parameters, which :mod:`besman.trees.nodes` reads (its keywords take them in that order, then
+``plan``, which only code gives); the subtrees it builds record how they were called (``besman_spec``), so
+trees built in code can be written back as files.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import functools
+import inspect
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import py_trees
@@ -26,11 +30,13 @@ import py_trees
 from besman.sim.manipulation import PICK_STEPS, PLACE_STEPS, PickPlacePlan
 from besman.skills.errors import InputError
 from besman.skills.validation import COUNT, as_given, checked, instance, non_negative, optional, shaped, text
-from besman.trees.base import NAMES, RoleBehaviour
+from besman.trees.base import NAMES, RoleBehaviour, SimulationBehaviour
 from besman.trees.conditions import ObjectAt, ObjectGrasped
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
 from besman.trees.manipulation import (
     DEFAULT_PLAN,
+    LEARNED,
+    TEMPLATE_PARAMETERS,
     PerceiveObject,
     PlanGrasp,
     PlanPlace,
@@ -55,111 +61,133 @@ SUBTREE_ARGUMENTS = {
 }
 
 
+def _node_type(type_name: str, parameters: Mapping[str, str], planner: type[RoleBehaviour] | None = None):
+    """Declares a subtree factory as the tree-file node ``type_name`` with ``parameters`` beyond ``name``
+    (parameter -> kind, see :mod:`besman.trees.nodes`), whose blackboard roles (if it takes a remap) are
+    those of its planning leaf ``planner``. The subtrees it builds record the call as ``besman_spec``."""
+
+    def declare(factory: Callable[..., py_trees.behaviour.Behaviour]):
+        signature = inspect.signature(factory)
+
+        @functools.wraps(factory)
+        def build(*args, **kwargs) -> py_trees.behaviour.Behaviour:
+            tree = factory(*args, **kwargs)
+            call = signature.bind(*args, **kwargs)
+            call.apply_defaults()
+            tree.besman_spec = {"type": type_name, **_as_written(call.arguments, parameters)}
+            return tree
+
+        build.node_type, build.parameters, build.planner = type_name, dict(parameters), planner
+        return build
+
+    return declare
+
+
+def _as_written(arguments: Mapping[str, Any], parameters: Mapping[str, str]) -> dict:
+    """A subtree's name and ``parameters`` as a tree file gives them: a pool by its directory, a remap as a
+    plain mapping, and the learned motion's arguments only with a pool (without one, the subtree plans its
+    motions and does not use them)."""
+    if arguments.get("pool") is None:
+        parameters = {param: kind for param, kind in parameters.items() if param not in LEARNED}
+    written = {"name": arguments["name"]}
+    for param, kind in parameters.items():
+        value = arguments[param]
+        if kind == "pool" and value is not None:
+            value = str(getattr(value, "directory", value))
+        written[param] = dict(value or {}) if kind == "keys" else value
+    return written
+
+
 @checked(**SUBTREE_ARGUMENTS)
+@_node_type(
+    "Grasp",
+    {
+        "object": "str",
+        "namespace": "str",
+        "attempts": "int>=1",
+        "remap": "keys",
+        "arm": "str",
+        "offset": "floats[2]",
+        **LEARNED,
+    },
+    PlanGrasp,
+)
 def grasp(
     name: str = "grasp",
     *,
     object: str = "box",
     namespace: str = "grasp",
     attempts: int = 2,
-    plan: PickPlacePlan = DEFAULT_PLAN,
     remap: Mapping[str, str] | None = None,
+    arm: str | None = None,
+    offset: tuple[float, float] | None = None,
     pool: Mapping[str, Any] | None = None,
     template: str | None = None,
     refine_above: float | None = None,
-    arm: str | None = None,
-    offset: tuple[float, float] | None = None,
+    plan: PickPlacePlan = DEFAULT_PLAN,
 ) -> py_trees.behaviour.Behaviour:
     """A subtree that grasps ``object`` (a name, or a key holding one) with ``arm`` (default: the executor's
     own), ``offset`` from its centre, and lifts it; up to ``attempts`` tries from fresh perception. With a
     ``pool`` and a ``template``, the reach is the template's (see :class:`PlanGrasp`)."""
     remap = _checked(name, remap or {}, PlanGrasp)
-    primitives = PlanGrasp.role_keys(namespace, remap)
+    planning = PlanGrasp(
+        "plan grasp",
+        object=object,
+        offset=offset,
+        **_planning(plan, namespace, remap, arm, pool, template, refine_above),
+    )
     steps = py_trees.composites.Sequence(
         f"{name} steps",
         memory=True,
         children=[
             PerceiveObject("perceive", object=object, **_wiring(PerceiveObject, namespace, remap)),
-            PlanGrasp(
-                "plan grasp",
-                object=object,
-                offset=offset,
-                plan=plan,
-                namespace=namespace,
-                remap=remap,
-                arm=arm,
-                **_learned(pool, template, refine_above),
-            ),
-            *_step_leaves(PICK_STEPS, object, primitives, arm),
+            planning,
+            *_step_leaves(PICK_STEPS, planning, object),
             ObjectGrasped("grasped?", object=object, arm=arm),
         ],
     )
-    tree = py_trees.decorators.Retry(name, steps, num_failures=attempts)
-    tree.besman_spec = {
-        "type": "Grasp",
-        "name": name,
-        "object": object,
-        "namespace": namespace,
-        "attempts": attempts,
-        "remap": remap,
-        "arm": arm,
-        "offset": offset,
-        **_learned_spec(pool, template, refine_above),
-    }
-    return tree
+    return py_trees.decorators.Retry(name, steps, num_failures=attempts)
 
 
 @checked(**SUBTREE_ARGUMENTS)
+@_node_type(
+    "Place",
+    {"object": "str", "namespace": "str", "target": "str", "remap": "keys", "arm": "str", **LEARNED},
+    PlanPlace,
+)
 def place(
     name: str = "place",
     *,
     object: str = "box",
     namespace: str = "place",
     target: str | None = None,
-    plan: PickPlacePlan = DEFAULT_PLAN,
     remap: Mapping[str, str] | None = None,
+    arm: str | None = None,
     pool: Mapping[str, Any] | None = None,
     template: str | None = None,
     refine_above: float | None = None,
-    arm: str | None = None,
+    plan: PickPlacePlan = DEFAULT_PLAN,
 ) -> py_trees.behaviour.Behaviour:
     """A subtree that puts the held ``object`` down at the target (role ``target``, or the key ``target``)
     with ``arm``. With a ``pool`` and a ``template``, the carry is the template's (see
     :class:`PlanPlace`)."""
-    own_remap = _checked(name, remap or {}, PlanPlace)
-    remap = own_remap | ({"target": target} if target is not None else {})
-    primitives = PlanPlace.role_keys(namespace, remap)
-    tree = py_trees.composites.Sequence(
+    remap = _checked(name, remap or {}, PlanPlace) | ({"target": target} if target is not None else {})
+    planning = PlanPlace(
+        "plan place", object=object, **_planning(plan, namespace, remap, arm, pool, template, refine_above)
+    )
+    return py_trees.composites.Sequence(
         name,
         memory=True,
         children=[
-            PlanPlace(
-                "plan place",
-                object=object,
-                plan=plan,
-                namespace=namespace,
-                remap=remap,
-                arm=arm,
-                **_learned(pool, template, refine_above),
-            ),
-            *_step_leaves(PLACE_STEPS, object, primitives, arm),
+            planning,
+            *_step_leaves(PLACE_STEPS, planning, object),
             ObjectAt("placed?", object=object, **_wiring(ObjectAt, namespace, remap)),
         ],
     )
-    tree.besman_spec = {
-        "type": "Place",
-        "name": name,
-        "object": object,
-        "namespace": namespace,
-        "target": target,
-        "remap": own_remap,
-        "arm": arm,
-        **_learned_spec(pool, template, refine_above),
-    }
-    return tree
 
 
 @checked(**SUBTREE_ARGUMENTS)
+@_node_type("GraspThenPlace", {"object": "str", "target": "str", "attempts": "int>=1"})
 def grasp_then_place(
     name: str = "grasp then place",
     *,
@@ -180,18 +208,11 @@ def grasp_then_place(
         memory=True,
         children=[holding, place("place", object=object, target=target, plan=plan)],
     )
-    tree = py_trees.decorators.Retry(name, sequence, num_failures=attempts)
-    tree.besman_spec = {
-        "type": "GraspThenPlace",
-        "name": name,
-        "object": object,
-        "target": target,
-        "attempts": attempts,
-    }
-    return tree
+    return py_trees.decorators.Retry(name, sequence, num_failures=attempts)
 
 
 @checked(**SUBTREE_ARGUMENTS)
+@_node_type("ReturnHome", {**TEMPLATE_PARAMETERS, "namespace": "str", "target": "str"})
 def return_home(
     name: str = "return home",
     *,
@@ -204,7 +225,7 @@ def return_home(
     primitive between where the arm is and the home configuration, and executes it."""
     check_template(name, pool, template)
     keys = PlanReturn.role_keys(namespace, {})
-    tree = py_trees.composites.Sequence(
+    return py_trees.composites.Sequence(
         name,
         memory=True,
         children=[
@@ -219,27 +240,12 @@ def return_home(
             ExecutePrimitive("return", remap={"primitive": keys["return"]}),
         ],
     )
-    tree.besman_spec = {
-        "type": "ReturnHome",
-        "name": name,
-        "namespace": namespace,
-        "target": target,
-        **_learned_spec(pool, template, None),
-    }
-    return tree
 
 
-def _learned(pool, template, refine_above) -> dict:
-    """A planning leaf's learned-motion arguments (none for the planned motions)."""
-    return {} if pool is None else {"pool": pool, "template": template, "refine_above": refine_above}
-
-
-def _learned_spec(pool, template, refine_above) -> dict:
-    """How a subtree's learned motion is written back to a tree file (the pool by its directory)."""
-    if pool is None:
-        return {}
-    spec = {"pool": str(getattr(pool, "directory", pool)), "template": template}
-    return spec if refine_above is None else {**spec, "refine_above": refine_above}
+def _planning(plan, namespace, remap, arm, pool, template, refine_above) -> dict:
+    """The arguments of grasp's and place's planning leaf (the learned motion's only with a pool)."""
+    learned = {} if pool is None else {"pool": pool, "template": template, "refine_above": refine_above}
+    return {"plan": plan, "namespace": namespace, "remap": remap, "arm": arm, **learned}
 
 
 def _checked(subtree: str, remap: Mapping[str, str], planner: type[RoleBehaviour]) -> dict[str, str]:
@@ -257,10 +263,11 @@ def _wiring(leaf: type[RoleBehaviour], namespace: str, remap: Mapping[str, str])
     return {"namespace": namespace, "remap": {role: key for role, key in remap.items() if role in leaf.roles}}
 
 
-def _step_leaves(steps, object: str, primitives: Mapping[str, str], arm: str | None) -> list:
+def _step_leaves(steps, planning: SimulationBehaviour, object: str) -> list:
     """The leaves that run pick-and-place ``steps`` (:data:`~besman.sim.manipulation.PICK_STEPS`, ...) with
-    ``arm``: a gripper action, or the planning leaf's primitive (its blackboard key in ``primitives``, by
-    role), guarded while the object must stay in the hand."""
+    the arm of the ``planning`` leaf: a gripper action, or a primitive that leaf writes, guarded while the
+    object must stay in the hand."""
+    arm = planning.arm
     leaves = []
     for step in steps:
         if step.gripper is not None:
@@ -268,9 +275,9 @@ def _step_leaves(steps, object: str, primitives: Mapping[str, str], arm: str | N
             grasp = {"expect_grasp": True, "object": object} if closing else {}
             leaves.append(Gripper(step.name, action="close" if closing else "open", arm=arm, **grasp))
         elif step.holding:
-            leaves.append(_while_holding(step.name, object, primitives[step.move], arm))
+            leaves.append(_while_holding(step.name, object, planning.key(step.move), arm))
         else:
-            leaves.append(ExecutePrimitive(step.name, remap={"primitive": primitives[step.move]}, arm=arm))
+            leaves.append(ExecutePrimitive(step.name, remap={"primitive": planning.key(step.move)}, arm=arm))
     return leaves
 
 

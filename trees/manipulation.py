@@ -38,6 +38,12 @@ from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
 from besman.trees.templates import check_template, check_template_fits
 
+# The parameters (kinds: see besman.trees.nodes) of a leaf or subtree whose motion is a skill template's
+# instance; LEARNED: of a planning leaf or subtree whose big move may be one, refined online where the
+# template is unsure (see _Plan).
+TEMPLATE_PARAMETERS = {"pool": "pool", "template": "str"}
+LEARNED = {**TEMPLATE_PARAMETERS, "refine_above": "float>=0"}
+
 
 class PerceiveObject(SimulationBehaviour):
     """Writes the current position of ``object`` to the role ``object_position``."""
@@ -73,13 +79,7 @@ class _Plan(SimulationBehaviour):
     source = ""
     block = ""
     planner: ClassVar = None
-    parameters: ClassVar = {
-        "object": "str",
-        "pool": "pool",
-        "template": "str",
-        "refine_above": "float>=0",
-        "arm": "str",
-    }
+    parameters: ClassVar = {"object": "str", **LEARNED, "arm": "str"}
 
     def __init__(
         self,
@@ -179,6 +179,11 @@ class _Plan(SimulationBehaviour):
         )
 
 
+def _planning_roles(source: str, *outputs: str) -> dict[str, Access]:
+    """A planning leaf's roles: it reads ``source`` and writes the primitives ``outputs``."""
+    return {source: Access.READ, **dict.fromkeys(outputs, Access.WRITE)}
+
+
 class PlanGrasp(_Plan):
     """Plans reach, descend and lift for the object at ``object_position``, grasped ``offset`` (x, y in
     m, default its centre) from its centre: where it stands on the table or, held by another hand, in the
@@ -186,14 +191,9 @@ class PlanGrasp(_Plan):
 
     parameters: ClassVar = {**_Plan.parameters, "offset": "floats[2]"}
     source = "object_position"
+    roles: ClassVar = _planning_roles(source, "reach", "descend", "lift")
     block = "reach"
     planner = plan_pick
-    roles: ClassVar = {
-        "object_position": Access.READ,
-        "reach": Access.WRITE,
-        "descend": Access.WRITE,
-        "lift": Access.WRITE,
-    }
 
     def __init__(
         self,
@@ -230,17 +230,13 @@ class PlanGrasp(_Plan):
 
 
 class PlanPlace(_Plan):
-    """Plans carry, place and retreat to the ``target`` (x, y) from the current configuration."""
+    """Plans carry, place and retreat to the ``target`` from the current configuration: x, y on the shelf,
+    or x, y, z onto a top at height z (another object's: a stack)."""
 
     source = "target"
+    roles: ClassVar = _planning_roles(source, "carry", "place", "retreat")
     block = "carry"
     planner = plan_place
-    roles: ClassVar = {
-        "target": Access.READ,
-        "carry": Access.WRITE,
-        "place": Access.WRITE,
-        "retreat": Access.WRITE,
-    }
 
     def tau(self, where: np.ndarray) -> np.ndarray:
         # The carry's tau: where the box was picked (the hand is above it, holding it) and the target.
@@ -248,7 +244,7 @@ class PlanPlace(_Plan):
         return np.r_[hand[:2], where]
 
     def goal(self, source: np.ndarray, item: str) -> np.ndarray:
-        return source[:2]
+        return source[:3]
 
     def _planned(self, goal: np.ndarray, item, shape):
         # The object, not the hand, goes to the target: where it is held off its centre (a bar taken over at

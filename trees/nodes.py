@@ -2,13 +2,13 @@
 
 A leaf class declares its tree-file parameters (:attr:`~besman.trees.base.RoleBehaviour.parameters`) and
 blackboard roles once; its defaults are its constructor's. Roles add ``namespace`` and ``remap``. Subtree
-idioms are functions, so their parameter kinds are declared here; py_trees' composites and decorators get a
-line each. Parameter kinds: ``str``, ``float``, ``int``, ``bool``, ``floats`` (a list of numbers), ``keys``
-(a mapping of roles or keys to keys), ``primitive`` (a primitive's JSON file), ``template`` and ``pool``
-(``MODULE:NAME``, registered or of an allowed module: :mod:`besman.trees.registry`; or a pool directory).
-A kind may carry a rule that the loader checks with the file and line: ``>0`` or ``>=1`` (bounds of a
-number), ``[2|3]`` (allowed lengths of a list), ``{all|one}`` (allowed values of a string); numbers are
-always finite.
+idioms are functions that declare their node type and parameters (:mod:`besman.trees.idioms`); py_trees'
+composites and decorators get a line each. Parameter kinds: ``str``, ``float``, ``int``, ``bool``,
+``floats`` (a list of numbers), ``keys`` (a mapping of roles or keys to keys), ``primitive`` (a primitive's
+JSON file), ``template`` and ``pool`` (``MODULE:NAME``, registered or of an allowed module:
+:mod:`besman.trees.registry`; or a pool directory). A kind may carry a rule that the loader checks with the
+file and line: ``>0`` or ``>=1`` (bounds of a number), ``[2|3]`` (allowed lengths of a list), ``{all|one}``
+(allowed values of a string); numbers are always finite.
 """
 
 from __future__ import annotations
@@ -103,10 +103,10 @@ def leaf(cls: type[RoleBehaviour]) -> NodeType:
     return NodeType(cls, _params(cls, kinds), roles=cls if cls.roles else None)
 
 
-def subtree(factory: Callable, kinds: Mapping[str, str], roles: type[RoleBehaviour] | None) -> NodeType:
-    """The node type of a subtree idiom whose blackboard roles (if it takes a remap) are those of its
-    planning leaf ``roles``."""
-    return NodeType(factory, _params(factory, kinds), roles=roles)
+def subtree(factory: Callable) -> NodeType:
+    """The node type of a subtree idiom, from what it declares: its parameters and the planning leaf whose
+    blackboard roles it has (if it takes a remap)."""
+    return NodeType(factory, _params(factory, factory.parameters), roles=factory.planner)
 
 
 _POLICIES = {
@@ -118,9 +118,6 @@ _POLICIES = {
 def _decorator(cls) -> NodeType:
     return NodeType(lambda name, child: cls(name, child), {}, "one")
 
-
-# The parameters of a subtree whose big move may come from a skill template (see trees.manipulation._Plan).
-_LEARNED = {"pool": "pool", "template": "str", "refine_above": "float>=0"}
 
 NODE_TYPES: dict[str, NodeType] = {
     "Sequence": NodeType(
@@ -181,28 +178,5 @@ NODE_TYPES: dict[str, NodeType] = {
             Throw,
         )
     },
-    "Grasp": subtree(
-        grasp,
-        {
-            "object": "str",
-            "namespace": "str",
-            "attempts": "int>=1",
-            "remap": "keys",
-            "arm": "str",
-            "offset": "floats[2]",
-            **_LEARNED,
-        },
-        PlanGrasp,
-    ),
-    "Place": subtree(
-        place,
-        {"object": "str", "namespace": "str", "target": "str", "remap": "keys", "arm": "str", **_LEARNED},
-        PlanPlace,
-    ),
-    "ReturnHome": subtree(
-        return_home, {"pool": "pool", "template": "str", "namespace": "str", "target": "str"}, None
-    ),
-    "GraspThenPlace": subtree(
-        grasp_then_place, {"object": "str", "target": "str", "attempts": "int>=1"}, None
-    ),
+    **{factory.node_type: subtree(factory) for factory in (grasp, place, return_home, grasp_then_place)},
 }

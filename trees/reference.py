@@ -17,6 +17,7 @@ it, so the reference (``besman tree nodes``, the node section of ``docs/trees.md
 from __future__ import annotations
 
 import inspect
+from collections.abc import Iterable
 from typing import Any
 
 from py_trees.common import Access
@@ -184,8 +185,12 @@ def _node_schema(type_name: str, spec: NodeType) -> dict:
     }
 
 
-def tree_schema() -> dict:
-    """The JSON Schema of tree files (see the module documentation)."""
+def tree_schema(tasks: Iterable[str] | None = None) -> dict:
+    """The JSON Schema of tree files (see the module documentation); ``tasks``: the names a file's
+    ``task`` may have (the registry's; None: any name)."""
+    task = {"type": "string", "description": "the task the tree runs on (besman tasks lists them)"}
+    if tasks is not None:
+        task["enum"] = list(tasks)
     include = {
         "type": "object",
         "description": "another tree file's root here, its keys renamed by remap",
@@ -201,7 +206,11 @@ def tree_schema() -> dict:
         "$id": SCHEMA_ID,
         "title": "besman behaviour-tree file",
         "type": "object",
-        "properties": {"besman_tree": {"const": FORMAT_VERSION}, "root": {"$ref": "#/$defs/node"}},
+        "properties": {
+            "besman_tree": {"const": FORMAT_VERSION},
+            "task": task,
+            "root": {"$ref": "#/$defs/node"},
+        },
         "required": ["besman_tree", "root"],
         "additionalProperties": False,
         "$defs": {

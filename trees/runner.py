@@ -16,7 +16,7 @@ With a log file, the runner writes it as the run goes (:class:`LogStream`), and 
 when the run ends or is interrupted.
 
 :func:`read_log` reads it back and :func:`statuses` gives the per-tick statuses of a run or a log. The
-runner knows nothing of any particular task: :mod:`besman.trees.tabletop` sets up AILA's tabletop runs.
+runner knows nothing of any particular task: :mod:`besman.tasks.running` sets a task's runs up.
 """
 
 from __future__ import annotations

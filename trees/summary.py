@@ -6,7 +6,7 @@ A summary holds both - ``status`` from the tree, ``success`` from the measuremen
 configuration and its cost, and it says in one line what it measured (``outcome``), so that nothing that
 prints a summary needs to know which task it came from.
 
-The JSON document (:meth:`RunSummary.to_json`, printed by ``--json``) has ``schema_version`` 1 and
+The JSON document (:meth:`RunSummary.to_json`, printed by ``--json``) has ``schema_version`` 2 and
 ``kind`` ``"besman-run-summary"``, then every field below in this order; ``measurements`` is the only
 object whose keys depend on the task (each demo's are listed with the command line's pages).
 """
@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, field
 
 from besman.trees.runner import Runner, RunResult
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: the task
 KIND = "besman-run-summary"
 
 
@@ -40,8 +40,10 @@ class RunSummary:
         status: the tree's final status: ``SUCCESS`` or ``FAILURE``.
         outcome: one line on what was measured, e.g. ``placement error 0.0 cm``.
         measurements: the measured values by name (``placement_error_m``, ``miss_m``...; per task).
-        demo: the demo's name, or None for a tree run with ``besman run``.
-        tree: the tree file that ran (or the tree itself, described, when it was built in code).
+        task: the task the tree ran on.
+        demo: the demo's name (its task's), or None for a tree run with ``besman run``.
+        tree: the tree file that ran (or the tree itself, described, when it was built in code), with the
+            pool that replaced the pools it names (``--pool``).
         robot: the robot's name.
         seed: the seed that drew the configuration, or None.
         settings: the run's configuration: the values on the blackboard's ``/task/`` and where objects stood.
@@ -56,6 +58,7 @@ class RunSummary:
     status: str
     outcome: str
     measurements: dict
+    task: str
     demo: str | None
     tree: str
     robot: str
@@ -70,14 +73,18 @@ class RunSummary:
     @classmethod
     def of(cls, runner: Runner, result: RunResult, measured: Measured) -> RunSummary:
         """The summary of ``runner``'s run that ended with ``result``, the task having measured
-        ``measured``; what was run (demo, tree, robot, seed, settings) comes from the runner's log header."""
+        ``measured``; what was run (task, demo, tree, robot, seed, settings) comes from the runner's log
+        header."""
         info = runner.run_info
         tree = info["tree"]
+        if isinstance(tree, str) and info.get("pool"):
+            tree += f" (--pool {info['pool']})"
         return cls(
             success=result.status == "SUCCESS" and measured.done,
             status=result.status,
             outcome=measured.outcome,
             measurements=measured.measurements,
+            task=info["task"],
             demo=info.get("demo"),
             tree=tree if isinstance(tree, str) else f"{runner.root.name} (built in code)",
             robot=info["robot"],

@@ -25,6 +25,7 @@ from besman.sim.throw_execution import ThrowingExecutor
 from besman.skills.errors import InputError
 from besman.skills.validation import SEED
 from besman.trees.base import SimulationBehaviour
+from besman.trees.manipulation import TEMPLATE_PARAMETERS
 
 
 def _throwing(name: str, executor) -> ThrowingExecutor:
@@ -38,13 +39,7 @@ class AimThrow(SimulationBehaviour):
     simulation where it would miss by more than ``accept`` m; writes ``throw``."""
 
     roles: ClassVar = {"target": Access.READ, "throw": Access.WRITE}
-    parameters: ClassVar = {
-        "pool": "pool",
-        "template": "str",
-        "accept": "float>0",
-        "budget": "int>=0",
-        "seed": "int",
-    }
+    parameters: ClassVar = {**TEMPLATE_PARAMETERS, "accept": "float>0", "budget": "int>=0", "seed": "int"}
 
     def __init__(
         self,

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -20,7 +21,6 @@ from py_trees.common import Status
 from besman.sim.executor import Executor
 from besman.sim.overlays import template_spread
 from besman.sim.viewer import Viewer, within
-from besman.sim.world import tabletop_world
 from besman.skills.errors import InputError
 from besman.trees.base import RoleBehaviour
 from besman.trees.leaves import InstantiateSkillTemplate
@@ -116,17 +116,20 @@ class Watch:
 class Replay:
     """A logged run in the viewer: the scene and the tree panel of any tick, chosen on a timeline slider or
     played at the run's own pace (the log is :func:`~besman.trees.runner.read_log`'s; the scene is the
-    demo's that made the log, or AILA's tabletop, posed from each tick's ``robot`` record: every arm, hand
-    and free body)."""
+    one ``executor_of(header)`` rebuilds, the task's that made the log
+    (:func:`besman.tasks.running.executor_of`), posed from each tick's ``robot`` record: every arm, hand and
+    free body)."""
 
-    def __init__(self, log: str | Path, viewer_options: dict | None = None) -> None:
+    def __init__(
+        self, log: str | Path, executor_of: Callable[[dict], Executor], viewer_options: dict | None = None
+    ) -> None:
         header, self.records, self.result = read_log(log)
         if not self.records:
             raise InputError(f"{log}: the log has no ticks to replay")
         self.nodes = header["run"].get("nodes") or list(
             dict.fromkeys(k for r in self.records for k in r["statuses"])
         )
-        executor = _executor_of(header["run"])
+        executor = executor_of(header)
         self.world = executor.world
         self._arm = executor.arm.qpos_indices
         self._fingers = None if executor.hand is None else executor.hand.fingers.qpos_indices
@@ -209,15 +212,3 @@ class Replay:
             pause = self.records[following]["time"] - self.records[tick]["time"]
             if not self._closed.wait(pause if 0 < pause < 1 else 0.02):
                 self.slider.value = following  # its update handler shows the tick
-
-
-def _executor_of(run: dict) -> Executor:
-    """The executor (its world, arms and hands) that a logged run drove: a gallery demo's, rebuilt from its
-    name, seed, robot and options, or the robot's tabletop (the arm and hand of ``besman run``)."""
-    robot = run.get("robot")
-    if run.get("demo") in (None, "grasp-then-place"):
-        return Executor(tabletop_world(robot=robot or "aila"))
-    from besman.trees.gallery import prepare_demo
-
-    options = {**(run.get("options") or {}), **({"robot": robot} if robot else {})}
-    return prepare_demo(run["demo"], run.get("seed"), options).runner.executor

@@ -1,4 +1,4 @@
-"""`besman learn`: from a folder of human recordings to a skill template pool that drives AILA."""
+"""`besman learn`: from a folder of human recordings to a skill template pool of a task's building blocks."""
 
 from __future__ import annotations
 
@@ -20,9 +20,18 @@ def _roles(text: str) -> tuple[tuple[str, str], ...]:
 
 def _learn(args: argparse.Namespace) -> int:
     from besman.learning.pipeline import LearnSettings, learn
+    from besman.skills.errors import InputError
+    from besman.tasks import DEFAULT, TASKS, task
 
+    chosen = task(args.task or DEFAULT)  # an unknown name is refused with the list, before any work
+    robot = chosen.check_robot(args.robot)
+    blocks = chosen.building_blocks(robot)
+    if blocks is None:
+        learnable = [name for name, entry in TASKS.items() if entry.building_blocks(entry.robot) is not None]
+        raise InputError(
+            f"task {chosen.name} has no building blocks to learn; tasks that learn: {', '.join(learnable)}"
+        )
     settings = LearnSettings(
-        robot=args.robot,
         tasks=args.tasks,
         budget=args.budget,
         seed=args.seed,
@@ -31,7 +40,7 @@ def _learn(args: argparse.Namespace) -> int:
         examples=tuple(args.examples),
         roles=args.roles,
     )
-    result = learn(args.demos, args.out, settings, force=args.force)
+    result = learn(args.demos, args.out, settings, blocks=blocks, force=args.force)
     print(f"pool {result.pool}: templates {', '.join(result.templates)}")
     for block, runs in result.refined.items():
         refined = sum(run["outcome"]["success"] for run in runs)
@@ -49,7 +58,12 @@ def register(commands) -> None:
     )
     learn.add_argument("--demos", required=True, help="a folder of recordings (.tsv, .csv, .npz)")
     learn.add_argument("--out", required=True, help="the pool folder (resumed if a run was interrupted)")
-    learn.add_argument("--robot", default="aila", help="the robot (default: aila)")
+    learn.add_argument(
+        "--task",
+        default=None,
+        help="the task whose building blocks to learn (default: pick-place; besman tasks lists them)",
+    )
+    learn.add_argument("--robot", help="the robot (default: the task's)")
     learn.add_argument(
         "--tasks", type=COUNT, default=8, help="training tasks K per building block (default 8)"
     )
@@ -71,13 +85,13 @@ def register(commands) -> None:
         type=_roles,
         default=(),
         metavar="BLOCK=LABEL,...",
-        help="the labels of reach, carry and return (default: block4,5,6 clustered; approach_right, "
-        "move_obj_shelf, move_to_rest_down with --examples)",
+        help="the label that plays each of the task's blocks (default: the task's own, a cluster block1... "
+        "in task order, or a label of the --examples; see docs/learning.md)",
     )
     learn.add_argument(
         "--force",
         action="store_true",
-        help="start over: replace a pool learned with other settings (its stage caches only), or write "
-        "into a folder that holds other files (removing none of them)",
+        help="start over: replace a pool learned for another task or robot or with other settings (its "
+        "stage caches only), or write into a folder that holds other files (removing none of them)",
     )
     learn.set_defaults(handler=_learn)

@@ -10,22 +10,24 @@ from besman.commands.options import COUNT
 
 
 def _tasks_list(args: argparse.Namespace) -> int:
-    from besman.sim.tasks import TASKS
+    from besman.tasks import TASKS
 
-    for kind in TASKS.values():
-        print(f"{kind.name}\t{kind.title} (default robot: {kind.robot})")
+    for entry in TASKS.values():
+        print(f"{entry.name}\t{entry.title} (default robot: {entry.robot}; tree: {entry.tree or 'none'})")
     return 0
 
 
 def _tasks_show(args: argparse.Namespace) -> int:
-    from besman.sim.tasks import task_kind
+    from besman.tasks import task
 
-    facts = task_kind(args.name).describe(args.robot)  # unknown names and unfit robots are named
+    facts = task(args.name).describe(args.robot)  # unknown names and unfit robots are named
     if args.json:
         print(json.dumps(facts, indent=2))
         return 0
     print(f"{facts['task']} on {facts['robot']}: {facts['title']}")
+    print(f"randomised: {facts['randomised']}")
     print(f"success: {facts['success']}")
+    print(f"default tree: {facts['tree'] or 'none'}")
     for name, (low, high) in facts["bounds"].items():
         print(f"{name}\t[{low:g}, {high:g}]")
     return 0
@@ -56,7 +58,7 @@ def register(commands) -> None:
     tasks.set_defaults(handler=_tasks_list)
     task_commands = tasks.add_subparsers(dest="tasks_command", metavar="ACTION")
     task_show = task_commands.add_parser(
-        "show", help="a task on a robot: what it does, success, tau's box (and the tabletop layout)"
+        "show", help="a task on a robot: what it is, what is randomised, success, tau's box, its areas"
     )
     task_show.add_argument("name")
     task_show.add_argument("--robot", default=None, help="the robot (default: the task's own)")

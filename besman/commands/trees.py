@@ -1,17 +1,14 @@
-"""`besman tree`, `besman run` and `besman demo`: tree files shown, drawn and run on AILA's tabletop."""
+"""`besman tree`, `besman run` and `besman demo`: tree files shown, drawn, checked and run on their tasks."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import math
-import sys
 from collections.abc import Sequence
-from dataclasses import replace
-from pathlib import Path
 
 from besman.commands.options import SEED
-from besman.commands.viewing import check_view, serve, server_settings, tabletop, view_options
+from besman.commands.viewing import check_view, run_task, serve, view_options
 from besman.skills.errors import InputError
 
 
@@ -93,9 +90,10 @@ def _tree_nodes(args: argparse.Namespace) -> int:
 
 def _tree_schema(args: argparse.Namespace) -> int:
     from besman.skills.storage import check_output, write_atomically
+    from besman.tasks import task_names
     from besman.trees.reference import tree_schema
 
-    text = json.dumps(tree_schema(), indent=2) + "\n"
+    text = json.dumps(tree_schema(task_names()), indent=2) + "\n"
     if args.out is None:
         print(text, end="")
         return 0
@@ -105,13 +103,13 @@ def _tree_schema(args: argparse.Namespace) -> int:
 
 
 def _tree_check(args: argparse.Namespace) -> int:
-    from besman.trees import check_tree
-    from besman.trees.files import TreeFileError
+    from besman.tasks import task_names
+    from besman.trees.files import TreeFileError, check_tree
 
     problems = 0
     for file in args.files:
         try:
-            unimported = check_tree(file, allow_modules=args.allow_module)
+            unimported = check_tree(file, allow_modules=args.allow_module, tasks=task_names())
         except TreeFileError as error:
             problems += 1
             print(str(error))
@@ -128,15 +126,7 @@ def _run(args: argparse.Namespace) -> int:
     check_view(args)
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,), kind=LOG_KIND)
-    tree = args.file
-    if args.pool is not None or args.allow_module:  # pools replaced, modules imported: logged as built
-        from besman.trees import load_tree
-
-        tree = load_tree(args.file, pool=args.pool, allow_modules=args.allow_module)
-    summary, viewers = tabletop(args, tree, _parse_sets(args.set), args.log)
-    if tree is not args.file:
-        replaced = f" (--pool {Path(args.pool).resolve()})" if args.pool is not None else ""
-        summary = replace(summary, tree=f"{Path(args.file).resolve()}{replaced}")
+    summary, viewers = run_task(args, tree=args.file, values=_parse_sets(args.set), log=args.log)
     _print_summary(summary, args.json)
     return serve(viewers, 0 if summary.success else 1)
 
@@ -144,66 +134,35 @@ def _run(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace) -> int:
     check_view(args)
     from besman.skills.storage import check_output
-    from besman.trees.gallery import DEMOS, demo
+    from besman.tasks import DEFAULT, TASKS, task
     from besman.trees.runner import LOG_KIND
 
     if args.list:
-        for entry in DEMOS.values():
-            print(f"{entry.name}: {entry.title} ({entry.path.name})")
+        for entry in TASKS.values():
+            if entry.tree is not None:
+                print(f"{entry.name}: {entry.title} ({entry.tree}; default robot: {entry.robot})")
         return 0
-    chosen = demo(args.name)  # an unknown name is refused with the list, before any work
+    chosen = task(args.name or DEFAULT)  # an unknown name is refused with the list, before any work
+    if chosen.tree is None:
+        demos = ", ".join(name for name, entry in TASKS.items() if entry.tree is not None)
+        raise InputError(f"task {chosen.name} has no demo (no default tree); demos: {demos}")
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",), kind=LOG_KIND)
     args.robot = chosen.check_robot(args.robot)
-    options = {"robot": args.robot}
-    if args.target is not None:
-        if chosen.name != "throw":
-            raise InputError(f"--target is for the throw demo, not {chosen.name}")
-        options["target"] = _parse_sets([f"target={args.target}"])["target"]
     if not args.json:
-        print(f"{chosen.name} ({chosen.path.name}) on {args.robot}")
-    summary, viewers = _watched_demo(args, chosen, options)
+        print(f"{chosen.name} ({chosen.tree}) on {args.robot}")
+    summary, viewers = run_task(
+        args, task=chosen, values=_parse_sets(args.set), log=args.log, demo=chosen.name
+    )
     _print_summary(summary, args.json)
-    if not args.json and chosen.name == "grasp-then-place":
-        elsewhere = (  # a configuration of the robot's own tabletop: AILA's below, any robot's by a seed
-            "--set object=0.5,-0.05 --set place=0.58,-0.44"
-            if args.robot == "aila"
-            else f"--robot {args.robot} --seed 1"
-        )
+    if not args.json:
         print(
             "next: watch it in the browser (besman demo --view), see the other demos (besman demo --list), "
-            "or run the same tree as a file elsewhere on the table with a log:\n"
+            "or run the same tree as a file, on another configuration, with a log:\n"
             "  besman examples --copy .\n"
-            f"  besman run examples/trees/grasp_then_place.yaml {elsewhere} --log run.jsonl"
+            f"  besman run examples/trees/{chosen.tree} --robot {args.robot} --seed 1 --log run.jsonl"
         )
     return serve(viewers, 0 if summary.success else 1)
-
-
-def _watched_demo(args: argparse.Namespace, chosen, options: dict) -> tuple:
-    """Runs a gallery demo; with --view, watched in the browser at --speed (the viewer stays open).
-    Grasp-then-place is watched in a session (Run, Pause, Step, breakpoints, the box and place dragged)."""
-    from besman.trees.gallery import grasp_then_place_values, run_demo
-
-    if chosen.name == "grasp-then-place":
-        values = grasp_then_place_values(args.robot, args.seed)
-        summary, viewers = tabletop(args, str(chosen.path), values, args.log)
-        return replace(summary, demo=chosen.name), viewers
-    if not args.view:
-        return run_demo(chosen.name, args.seed, options, log=args.log), []
-    from besman.sim.viewer import Viewer
-    from besman.trees.gallery import observers, prepare_demo
-    from besman.trees.watching import Watch
-
-    prepared = prepare_demo(chosen.name, args.seed, options)
-    viewer = Viewer(prepared.runner.executor.world.model, **server_settings(args))
-    print(f"viewer: {viewer.url} (the run goes at {args.speed:g}x real time)", file=sys.stderr, flush=True)
-    prepared.runner.observe = observers(prepared.runner.observe, Watch(viewer, args.speed))
-    try:
-        result = prepared.runner.run(log=args.log)
-    except BaseException:
-        viewer.close()
-        raise
-    return prepared.judge(result), [viewer]
 
 
 def _allow_module_option(command: argparse.ArgumentParser) -> None:
@@ -214,6 +173,17 @@ def _allow_module_option(command: argparse.ArgumentParser) -> None:
         metavar="MODULE",
         help="a module whose attributes the tree may name as MODULE:NAME templates and pools (repeatable); "
         "imported when the tree is built, never by tree check",
+    )
+
+
+def _set_option(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE[,VALUE]",
+        help="a task value (besman tasks show TASK lists them, e.g. place=x,y) or any /task value the tree "
+        "reads",
     )
 
 
@@ -244,19 +214,17 @@ def register(commands) -> None:
     _allow_module_option(tree_check)
     tree_check.set_defaults(handler=_tree_check)
 
-    run = commands.add_parser("run", help="run a tree file on a robot's tabletop (default: AILA's)")
+    run = commands.add_parser("run", help="run a tree file on the task it names")
     run.add_argument("file")
     run.add_argument(
-        "--robot", default="aila", help="a robot's name or folder (besman robots lists them; default: aila)"
+        "--robot",
+        default=None,
+        help="a robot's name or folder (besman robots lists them; default: the task's robot)",
     )
+    _set_option(run)
     run.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE[,VALUE]",
-        help="object=x,y (where the box stands), place=x,y (where it goes), or any /task value",
+        "--seed", type=SEED, default=None, help="draws the task values not set (default: the task's own)"
     )
-    run.add_argument("--seed", type=SEED, default=None, help="draws object and place when not set")
     run.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     run.add_argument(
@@ -267,19 +235,15 @@ def register(commands) -> None:
     run.set_defaults(handler=_run)
 
     demo = commands.add_parser(
-        "demo", help="run a demo of the gallery (besman demo --list); default: grasp-then-place"
+        "demo", help="run a task's demo, its default tree (besman demo --list); default: pick-place"
     )
-    demo.add_argument(
-        "name", nargs="?", default="grasp-then-place", help="the demo (default: grasp-then-place)"
-    )
+    demo.add_argument("name", nargs="?", default=None, help="the task (default: pick-place)")
     demo.add_argument("--list", action="store_true", help="list the demos and exit")
-    demo.add_argument("--robot", default=None, help="the robot (default: the demo's; besman demo --list)")
+    demo.add_argument("--robot", default=None, help="the robot (default: the task's; besman demo --list)")
     demo.add_argument(
-        "--seed", type=SEED, default=None, help="draws the demo's configuration (default: a fixed one)"
+        "--seed", type=SEED, default=None, help="draws the configuration (default: the task's own)"
     )
-    demo.add_argument(
-        "--target", default=None, metavar="X,Y", help="where the throw demo aims (m on the floor)"
-    )
+    _set_option(demo)
     demo.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
     demo.add_argument("--json", action="store_true", help="print the summary as JSON")
     view_options(demo)

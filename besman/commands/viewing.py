@@ -57,23 +57,30 @@ def view_options(command: argparse.ArgumentParser) -> None:
     view.add_argument("--speed", type=positive, default=1.0, help="the run's pace with --view, x real time")
 
 
-def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple:
-    """Runs ``tree`` on the tabletop of ``args.robot``; with --view inside a browser session that stays open
-    after the run (returned in the list, for :func:`serve`)."""
-    from besman.trees.tabletop import run_on_tabletop, summary
-
-    seed = getattr(args, "seed", None)
+def run_task(args: argparse.Namespace, *, task=None, tree=None, values: dict, log, demo=None) -> tuple:
+    """Runs ``tree`` (default: the task's) on ``task`` (default: the one the tree file names) as the
+    command line asks (``--robot``, ``--seed``, ``--pool``, ``--allow-module``); with --view inside a browser
+    session that stays open after the run (returned in the list, for :func:`serve`)."""
+    options = {
+        "robot": args.robot,
+        "seed": getattr(args, "seed", None),
+        "pool": getattr(args, "pool", None),
+        "allow_modules": getattr(args, "allow_module", ()),
+        "demo": demo,
+    }
     if not args.view:
-        return run_on_tabletop(tree, values, seed=seed, log=log, robot=args.robot), []
-    from besman.trees.session import Session
+        from besman.tasks.running import run
+
+        return run(task, tree, values=values, log=log, **options), []
+    from besman.tasks.session import Session
 
     session = Session(
-        tree,
+        tree if tree is not None else task.tree_path,
         values,
-        seed=seed,
+        task=None if task is None else task.name,
         speed=args.speed,
         viewer_options=server_settings(args),
-        robot=args.robot,
+        **options,
     )
     print(
         f"viewer: {session.viewer.url} (the run goes at {args.speed:g}x real time)",
@@ -85,7 +92,7 @@ def tabletop(args: argparse.Namespace, tree, values: dict, log) -> tuple:
     except BaseException:
         session.close()
         raise
-    return summary(session.runner, result), [session]
+    return session.judge(result), [session]
 
 
 def serve(viewers: list, code: int) -> int:
@@ -108,9 +115,10 @@ def _view(args: argparse.Namespace) -> int:
     options = server_settings(args)
     if args.throw:
         return _view_throw(args, options)
+    from besman.tasks.running import executor_of
     from besman.trees.watching import Replay
 
-    replay = Replay(args.replay, options)
+    replay = Replay(args.replay, executor_of, options)
     print(
         f"replay of {args.replay} ({len(replay.records)} ticks): {replay.viewer.url}",
         file=sys.stderr,

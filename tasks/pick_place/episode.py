@@ -1,76 +1,40 @@
-"""A robot picks a box from the table and places it on the shelf with its first arm (AILA: the right arm
-and the waist).
+"""Pick and place as a scripted episode with numbers to tune: the task's batched evaluate for policy search.
 
-tau = (object x, object y, place x, place y): where the box stands on the table and where it must end up
-on the shelf board, inside :func:`pick_place_bounds` - the object and place areas of the robot's tabletop
-layout. AILA's (:data:`PICK_PLACE_BOUNDS`):
-
-- object box: x in [0.45, 0.62] m, y in [-0.15, 0.00] m on the table (top 0.78 m), in front of the robot;
-- place box: x in [0.45, 0.62] m, y in [-0.48, -0.34] m on the shelf board (top 0.90 m) to its right.
-
-Both boxes lie where the right arm, turning the waist, reaches top-down grasps and the poses above them
-with every joint at least 5 % of its range away from its limits for some grasp yaw (scanned on a grid).
-
-The episode is the pick-and-place sequence (:data:`~besman.sim.manipulation.PICK_STEPS` and
-``PLACE_STEPS``) of joint-space movement primitives planned by :mod:`besman.sim.manipulation` and executed
-by the Ruckig executor: open the gripper, reach above the object, descend, close (a grasp is required),
-lift, carry above the place, set down, release, retreat. theta tunes the plan
-(:class:`~besman.sim.manipulation.PickPlacePlan`); ``default_theta()`` is the hand-made plan.
-
-Success: the box was lifted at least 5 cm and carried in the hand until the release (not dropped), then
-stands upright (tilt < 10 deg) on the shelf within 2 cm of the place target. Metrics per episode: placement
-error, simulated time, largest contact force on the box, and which step failed and why.
+theta tunes the plan (:class:`~besman.sim.manipulation.PickPlacePlan`: heights, clearances), tau is the
+task's (object x, y, place x, y). An episode runs the pick-and-place sequence
+(:data:`~besman.sim.manipulation.PICK_STEPS` and ``PLACE_STEPS``) of joint-space movement primitives planned
+by :mod:`besman.sim.manipulation` and executed by the Ruckig executor: open the gripper, reach above the
+object, descend, close (a grasp is required), lift, carry above the place, set down, release, retreat;
+``default_theta()`` is the hand-made plan. It is judged by the task's rule
+(:mod:`besman.tasks.pick_place.rule`): reward = -placement error (m) on success, else -1. Metrics per
+episode: placement error, simulated time, largest contact force on the box, and which step failed and why.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 import mujoco
 import numpy as np
 
-import besman.robots as robots
-from besman.robots.description import TabletopLayout
 from besman.robots.robot import ROBOT
+from besman.sim.blocks import step_motion
 from besman.sim.evaluation import BatchedTask, Evaluation
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.manipulation import (
     PICK_STEPS,
     PLACE_STEPS,
-    PickMotions,
     PickPlacePlan,
-    PlaceMotions,
     PlanningError,
-    Step,
     plan_pick,
     plan_place,
 )
-from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
+from besman.sim.motions import MotionStatus
+from besman.sim.outcomes import lifted, placement
 from besman.sim.world import DEFAULT_BOX, GraspableObject, World, tabletop_world
-from besman.skills.errors import InputError
-from besman.skills.tasks import TaskBounds
 from besman.skills.validation import checked, instance
 
-
-def pick_place_bounds(robot: str | TabletopLayout = "aila") -> TaskBounds:
-    """The box of tau for ``robot`` (a name, a robot folder or its tabletop layout): its layout's object area
-    (table) and place area (shelf)."""
-    layout = robot if isinstance(robot, TabletopLayout) else robots.describe(robot).tabletop
-    if layout is None:
-        raise InputError(f"robot {robot!r} has no tabletop layout: it cannot pick and place")
-    (ox, oy), (px, py) = layout.objects, layout.places
-    return TaskBounds(
-        ("object_x", "object_y", "place_x", "place_y"),
-        (ox[0], oy[0], px[0], py[0]),
-        (ox[1], oy[1], px[1], py[1]),
-    )
-
-
-PICK_PLACE_BOUNDS = pick_place_bounds("aila")
 FAILURE_REWARD = -1.0
-LIFT_HEIGHT = 0.05  # m the box must rise above its resting height for a grasp to count
 
 
 @dataclass(frozen=True)
@@ -107,8 +71,10 @@ class PickPlaceTask(BatchedTask):
 
     @checked(config=instance(PickPlaceConfig, "a PickPlaceConfig"))
     def __init__(self, config: PickPlaceConfig = PickPlaceConfig()) -> None:
+        from besman.tasks.pick_place import PickPlace
+
         self.config = config
-        self.bounds = pick_place_bounds(config.robot)
+        self.bounds = PickPlace().bounds(config.robot)
         self.world = tabletop_world((config.item,), config.robot)
 
     @staticmethod
@@ -140,15 +106,6 @@ class PickPlaceTask(BatchedTask):
         return Evaluation(rewards, details)
 
 
-def step_motion(step: Step, planned: PickMotions | PlaceMotions, item: str) -> Motion:
-    """The motion that runs a pick-and-place ``step``: the ``planned`` primitive it follows, or its gripper
-    action on the object ``item``."""
-    if step.move is not None:
-        return FollowPrimitive(getattr(planned, step.move), name=step.name)
-    closing = step.gripper == "close"
-    return GripperMotion(step.name, opening=0.0 if closing else None, expect_grasp=closing, grasp_object=item)
-
-
 def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: PickPlacePlan) -> PickPlaceDetail:
     """Resets ``world``, places the box at tau's object position, plans and runs the scripted sequence."""
     world.reset()
@@ -162,7 +119,6 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
     except PlanningError as error:
         return _failure(world, "plan", str(error))
     monitor = _BoxMonitor(world, item.name, executor)
-    lifted = world.surface("table").height + item.half_height + LIFT_HEIGHT
     for step, planned in [(step, pick) for step in PICK_STEPS] + [(step, put) for step in PLACE_STEPS]:
         # Primitives start where the previous motion left the robot.
         motion = executor.run(step_motion(step, planned, item.name), timeout=15.0, observe=monitor.update)
@@ -171,10 +127,10 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
         if (step.holding or step.name == "lift") and not executor.hand.holds(item.name):
             return _failure(world, step.name, "the box slipped out of the hand", monitor)
         if step.name == "lift":  # the grasp, checked
-            if monitor.highest < lifted:
+            if not lifted(world, executor.hand, item.name):
                 return _failure(world, step.name, "the box was not lifted", monitor)
             monitor.grasped = True
-    placed = settle_and_measure(world, item, place_xy, monitor.update)
+    placed = placement(world, item.name, place_xy, monitor.update)
     violations = tuple(limit_violations(executor.log, executor))
     return PickPlaceDetail(
         placed.success,
@@ -189,60 +145,18 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
     )
 
 
-@dataclass(frozen=True)
-class Placement:
-    """Where a released box came to rest: success (upright on the shelf within 2 cm of the target),
-    horizontal error (m), tilt and a message."""
-
-    success: bool
-    error: float
-    tilt_degrees: float
-    message: str
-
-
-SETTLE_TIME = 0.3  # s the box is left to settle after its release before it is measured
-PLACE_TOLERANCE = 0.02  # m
-
-
-def settle_and_measure(
-    world: World, item: GraspableObject, place_xy, observe: Callable[[], None] | None = None
-) -> Placement:
-    """Lets the released ``item`` settle for :data:`SETTLE_TIME` (``observe`` after each step) and judges
-    where it stands against the target ``place_xy``."""
-    for _ in range(round(SETTLE_TIME / world.model.opt.timestep)):
-        mujoco.mj_step(world.model, world.data)
-        if observe is not None:
-            observe()
-    pose = world.object_pose(item.name)
-    error = float(np.linalg.norm(pose.position[:2] - np.asarray(place_xy, dtype=float)))
-    tilt = math.degrees(math.acos(min(1.0, abs(pose.rotation[2, 2]))))
-    on_shelf = abs(pose.position[2] - (world.surface("shelf").height + item.half_height)) < 0.01
-    success = bool(error <= PLACE_TOLERANCE and tilt < 10.0 and on_shelf)
-    message = (
-        "placed"
-        if success
-        else (
-            f"placed {error * 100:.1f} cm from the target, tilted {tilt:.1f} deg"
-            + ("" if on_shelf else ", off the shelf")
-        )
-    )
-    return Placement(success, error, tilt, message)
-
-
 class _BoxMonitor:
-    """Tracks the box's highest point, the largest normal contact force on it, and whether it was grasped."""
+    """Tracks the largest normal contact force on the box, and whether it was grasped."""
 
     def __init__(self, world: World, name: str, executor: Executor) -> None:
         self.world, self.executor = world, executor
         self.grasped = False
         self.body = world.model.body(name).id
-        self.highest = float(world.data.xpos[self.body][2])
         self.max_force = 0.0
         self._force = np.empty(6)
 
     def update(self) -> None:
         model, data = self.world.model, self.world.data
-        self.highest = max(self.highest, float(data.xpos[self.body][2]))
         # Every control cycle: find the box's contacts in one vectorised pass, then measure only those.
         bodies = model.geom_bodyid[data.contact.geom]  # (ncon, 2)
         for i in np.flatnonzero((bodies == self.body).any(axis=1)):

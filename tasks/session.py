@@ -1,18 +1,20 @@
 """An interactive run in the browser: Run, Pause, Step, Reset and speed; a breakpoint; gizmos for the task.
 
-A :class:`Session` holds a tree and the task values of AILA's tabletop (``object``: where the box stands,
-``place``: where it goes). Its runs go in a background thread, driven by the viewer's controls:
+A :class:`Session` holds a tree, the task it runs on (:mod:`besman.tasks`) and the task's values (pick and
+place's ``object``: where the box stands, ``place``: where it goes). Its runs go in a background thread,
+driven by the viewer's controls:
 
 - **Run** starts a run (a new one after the last has ended, or when a gizmo moved since this one was set up)
   or resumes a paused one; **Pause** stops after the current tick; **Step** runs one tick and pauses;
   **Reset** abandons the run and sets up a new one with the current task values; **speed** is the pace (x
   real time).
 - **Breakpoint**: a node chosen in the list pauses the run at the first tick that visits it (once per run).
-- Two draggable gizmos mark the object and the place target (they move within the task's bounds); letting go
-  of one sets that task value, and the next run uses it (a tree that instantiates templates instantiates them
-  for the new tau: it reads the task values when it runs).
-- Overlays (:mod:`besman.sim.overlays`): the place target as a ring, the motions' planned and executed hand
-  paths, target frames, the objects' poses, a template's spread.
+- A draggable gizmo marks each task value that is a point on a surface (:attr:`TaskValue.surface
+  <besman.tasks.base.TaskValue.surface>`: pick and place's object and place target); it moves within the
+  task's bounds, letting go of one sets that task value, and the next run uses it (a tree that instantiates
+  templates instantiates them for the new tau: it reads the task values when it runs).
+- Overlays (:mod:`besman.sim.overlays`): the task's target (its value marked ``target``) as a ring, the
+  motions' planned and executed hand paths, target frames, the objects' poses, a template's spread.
 
 ``besman run FILE --view`` and ``besman demo --view`` start the first run themselves (:meth:`Session.start`,
 with the run's log if one is asked for) and keep serving the session after it.
@@ -23,19 +25,20 @@ while the session is paused, so the simulation stands exactly where the tree sto
 
 from __future__ import annotations
 
+import os
 import threading
 
-import numpy as np
 from py_trees.common import Status
 
-from besman.sim.pick_place import pick_place_bounds
 from besman.sim.viewer import Viewer, within
+from besman.skills.errors import InputError
+from besman.tasks import task as find_task
+from besman.tasks.running import TaskRun, TreeSource, observers, prepare
+from besman.trees.files import tree_task
 from besman.trees.runner import Runner, RunResult
-from besman.trees.tabletop import TreeSource, tabletop_run
 from besman.trees.watching import Watch
 
 NO_BREAKPOINT = "(none)"
-TAU_COLUMNS = {"object": slice(0, 2), "place": slice(2, 4)}  # where each task value sits in tau
 
 
 class _Abandoned(KeyboardInterrupt):
@@ -43,21 +46,35 @@ class _Abandoned(KeyboardInterrupt):
 
 
 class Session:
-    """A tree on a robot's tabletop (AILA's by default), run from the browser (see the module
-    documentation)."""
+    """A tree on a task (default: the one its file names), run from the browser on ``robot`` (default: the
+    task's); see the module documentation. ``pool`` and ``allow_modules`` as for
+    :func:`~besman.tasks.running.prepare`, ``demo`` names the demo the session runs."""
 
     def __init__(
         self,
         tree: TreeSource,
-        values: dict[str, tuple[float, float]] | None = None,
+        values: dict[str, tuple[float, ...]] | None = None,
         *,
+        task: str | None = None,
         seed: int | None = None,
         speed: float = 1.0,
         viewer_options: dict | None = None,
-        robot: str = "aila",
+        robot: str | None = None,
+        pool=None,
+        allow_modules=(),
+        demo: str | None = None,
     ) -> None:
-        self.tree, self.seed, self.robot = tree, seed, robot
-        self.bounds = pick_place_bounds(robot)
+        from_file = isinstance(tree, str | os.PathLike)
+        if task is None and not from_file:
+            raise InputError("a tree built in code runs on a task: give task= (besman tasks lists them)")
+        named = task or tree_task(tree)
+        if named is None:
+            raise InputError(f"{tree}: the tree names no task (a top-level 'task:' field): it is a subtree")
+        self.task = find_task(named)
+        self.tree, self.seed = tree, seed
+        self.robot = self.task.check_robot(robot)
+        self._options = {"pool": pool, "allow_modules": allow_modules, "demo": demo}
+        self.bounds = self.task.bounds(self.robot)
         self._lock = threading.Condition()
         self._running = False  # the run may tick
         self._steps = 0  # ticks left before pausing (-1: no limit)
@@ -68,9 +85,9 @@ class Session:
         self._log = None  # the log of the next run (the first run's, from the command line)
         self.result: RunResult | None = None
         self.error: Exception | None = None  # what broke the last run, if anything did
-        runner, settings = tabletop_run(tree, values, seed=seed, robot=robot)  # values not given: drawn
-        self.values = {name: tuple(value) for name, value in settings.items()}
-        self.runner = self._new_runner(runner)
+        prepared = self._prepare(values or {})  # the task values not given: drawn, or the task's defaults
+        self.values = {name: tuple(value) for name, value in prepared.runner.run_info["values"].items()}
+        self.runner = self._new_runner(prepared)
         self.viewer = Viewer(self.runner.executor.world.model, **(viewer_options or {}))
         self.overlays = self.viewer.overlays_for(self.runner.executor.arm)
         gui = self.viewer.server.gui
@@ -90,8 +107,10 @@ class Session:
         self.reset_button.on_click(lambda _: self.reset())
         self.speed.on_update(lambda _: self._watch and setattr(self._watch, "speed", within(self.speed)))
         world = self.runner.executor.world
-        self.table, self.shelf = world.surface("table").height, world.surface("shelf").height
-        self.gizmos = {"object": self._gizmo("object", self.table), "place": self._gizmo("place", self.shelf)}
+        self.surfaces = {  # the task values that are points on a surface: their gizmo's height
+            value.name: world.surface(value.surface).height for value in self.task.values if value.surface
+        }
+        self.gizmos = {name: self._gizmo(name, height) for name, height in self.surfaces.items()}
         self._show_initial()
 
     # -- controls ------------------------------------------------------------------------------------------
@@ -130,9 +149,7 @@ class Session:
             self._thread.join()
         with self._lock:
             self._abandon, self._thread, self.result = False, None, None
-        self.runner = self._new_runner(
-            tabletop_run(self.tree, self.values, seed=self.seed, robot=self.robot)[0]
-        )
+        self.runner = self._new_runner(self._prepare(self.values))
         self._show_initial()
 
     @property
@@ -145,16 +162,20 @@ class Session:
             return self._thread is not None and self._thread.is_alive() and not self._running
 
     def set_value(self, name: str, xy) -> None:
-        """Sets the task value ``name`` ("object" or "place") for the next run; refused outside the bounds."""
+        """Sets the task value ``name`` (a point on a surface, e.g. "object" or "place") for the next run;
+        refused outside the bounds."""
+        if name not in self.surfaces:
+            raise InputError(f"{name!r} is not a task value to drag; these are: {', '.join(self.surfaces)}")
         x, y = (float(v) for v in xy)
-        tau = np.array([*self.values["object"], *self.values["place"]])
-        tau[TAU_COLUMNS[name]] = (x, y)
-        self.bounds.check(tau)  # a value outside the task's box is refused with its name
+        self.bounds.check(self.task.join({**self.values, name: (x, y)}))  # refused by name outside the box
         self.values[name] = (x, y)
         self.gizmos[name].position = (x, y, self.gizmos[name].position[2])
-        if name == "place":
-            self.overlays.show_place((x, y, self.shelf))
+        self._show_target()
         self.state.content = f"{name} set to ({x:.3f}, {y:.3f}); Reset or Run uses it"
+
+    def judge(self, result: RunResult):
+        """The summary of the current run that ended with ``result`` (the task's judgement)."""
+        return self.prepared.judge(result)
 
     def close(self) -> None:
         self.reset()
@@ -162,9 +183,14 @@ class Session:
 
     # -- internals -----------------------------------------------------------------------------------------
 
-    def _new_runner(self, runner: Runner) -> Runner:
-        self._watch, self._breakpoint_hit, self._made_with = None, False, dict(self.values)
-        runner.observe = self._observe
+    def _prepare(self, values: dict) -> TaskRun:
+        return prepare(self.task, self.tree, robot=self.robot, seed=self.seed, values=values, **self._options)
+
+    def _new_runner(self, prepared: TaskRun) -> Runner:
+        self._watch, self._breakpoint_hit = None, False
+        self._made_with = dict(getattr(self, "values", {}))
+        self.prepared, runner = prepared, prepared.runner
+        runner.observe = observers(runner.observe, self._observe)  # the task's own observer first
         return runner
 
     def _go(self, steps: int) -> None:
@@ -218,16 +244,22 @@ class Session:
         self.overlays.update(data)
         for name, handle in self.gizmos.items():
             handle.position = (*self.values[name], handle.position[2])
-        self.overlays.show_place((*self.values["place"], self.shelf))
+        self._show_target()
+
+    def _show_target(self) -> None:
+        """The task's target (its value marked ``target``) as a ring on its surface."""
+        for value in self.task.values:
+            if value.target and value.name in self.surfaces:
+                self.overlays.show_place((*self.values[value.name], self.surfaces[value.name]))
 
     def _gizmo(self, name: str, height: float):
         """A gizmo that moves in x and y within the task's bounds for ``name``; letting go sets the value."""
-        columns = TAU_COLUMNS[name]
+        columns = self.bounds.columns(next(v.names for v in self.task.values if v.name == name))
         return self.viewer.planar_gizmo(
             f"/task/{name}",
             (*self.values[name], height),
-            self.bounds.low[columns],
-            self.bounds.high[columns],
+            columns.low,
+            columns.high,
             scale=0.15,
             on_release=lambda xy: self.set_value(name, xy),
             status=self.state,

@@ -1,0 +1,45 @@
+"""What learning needs of a task: its building blocks, where each begins and how a rollout of one is scored.
+
+A task that learns from recordings (:mod:`besman.tasks`) hands :func:`~besman.learning.pipeline.learn` a
+:class:`BuildingBlocks`; the pipeline names no task and no block of its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from besman.skills.tasks import TaskBounds
+
+
+@dataclass(frozen=True)
+class BuildingBlocks:
+    """A task's building blocks on one robot.
+
+    Attributes:
+        task: the task's name (the pool's templates are for ``task/robot``).
+        robot: the robot (a name or a folder).
+        names: the blocks, in the order the task does them.
+        roles: which label of the recordings plays each block, by how they are labelled: ``"clustered"``
+            (clusters named ``block1``... in the order they come in the task) and ``"examples"`` (the
+            labels of annotated example recordings).
+        anchors: two blocks whose goals, in the person's workspace and in the robot's, fit the map between
+            the two (:func:`~besman.learning.retargeting.fit_workspace_map`).
+        bounds: a block's tau box.
+        world: a new world of the task on the robot.
+        start: ``start(world, block, tau)``: brings the world to where the block begins for ``tau``; the
+            result has the arm's configurations at the block's planned ``start`` and ``goal``.
+        refinement: ``refinement(block, shape file)``: the task config (``build()`` makes a
+            :class:`~besman.sim.evaluation.BatchedTask`) whose rollouts refine the block's primitive.
+    """
+
+    task: str
+    robot: str
+    names: tuple[str, ...]
+    roles: Mapping[str, Mapping[str, str]]
+    anchors: tuple[str, str]
+    bounds: Callable[[str], TaskBounds]
+    world: Callable[[], Any]
+    start: Callable[[Any, str, Any], Any]
+    refinement: Callable[[str, str], Any]

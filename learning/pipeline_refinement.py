@@ -1,0 +1,218 @@
+"""The last stages of :func:`~besman.learning.pipeline.learn`: each building block imitated
+(``work/imitated/``) and retargeted onto the robot (``work/shapes/``), refined by CMA-ES for its training
+tasks (``work/refined/``), and stored as a skill template in the pool.
+
+What is task-specific comes from the task's :class:`~besman.learning.blocks.BuildingBlocks`: the blocks
+and their order, the two anchors of the workspace map, each block's tau box, where it begins, and the
+batched rollouts that refine it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import qmc
+
+import besman.robots as robots
+from besman.learning.blocks import BuildingBlocks
+from besman.learning.demonstration import Demonstration
+from besman.learning.imitation import imitate
+from besman.learning.labelling import DemonstrationSegment
+from besman.learning.pipeline_record import (
+    SCHEMA_VERSION,
+    LearnError,
+    LearnSettings,
+    progress_bar,
+    write_json,
+)
+from besman.learning.policy_search import CMAES, WarmStart, policy_search
+from besman.learning.retargeting import fit_workspace_map, retarget
+from besman.sim.evaluation import BatchedTask
+from besman.sim.executor import Executor
+from besman.skills import MovementPrimitive, SkillTemplate, SkillTemplatePool
+from besman.skills.seeds import child_seed
+from besman.skills.storage import read_json
+
+
+def block_shapes(
+    instances: dict[str, list[dict]],
+    demos: dict[str, Demonstration],
+    blocks: BuildingBlocks,
+    n_weights: int,
+    work: Path,
+) -> dict[str, Path]:
+    """Each block imitated (Cartesian, the person's frame) from its ``instances`` in the recordings
+    (``demos`` by file name) and retargeted to the robot (joint space, ``n_weights`` per joint); the
+    workspace map, fitted on the anchors' goals, goes with each shape's provenance."""
+    shapes = {block: work / "shapes" / f"{block}.json" for block in blocks.names}
+    if all(path.is_file() for path in shapes.values()):
+        return shapes
+    imitated = {}
+    for block, found in instances.items():
+        path = work / "imitated" / f"{block}.json"
+        if not path.is_file():
+            segments = [DemonstrationSegment(demos[i["file"]], i["start"], i["end"], block) for i in found]
+            imitate(segments, name=block).save(path)
+        imitated[block] = MovementPrimitive.load(path)
+    world = blocks.world()
+    arm = Executor(world).arm
+    starts = {block: blocks.start(world, block, _centre(blocks, block)) for block in blocks.names}
+    first, second = blocks.anchors
+    mapping = fit_workspace_map(
+        imitated[first].dmp.position.goal,
+        imitated[second].dmp.position.goal,
+        arm.site_pose(starts[first].goal).position,
+        arm.site_pose(starts[second].goal).position,
+    )
+    for block, path in shapes.items():
+        if not path.is_file():
+            start = starts[block]
+            shape = retarget(imitated[block], mapping, arm, start.start, start.goal, n_weights=n_weights)
+            shape.provenance["segments"] = instances[block]
+            shape.save(path)
+    return shapes
+
+
+def refine_blocks(
+    shapes: dict[str, Path], blocks: BuildingBlocks, settings: LearnSettings, folder: Path, shown: bool
+) -> dict[str, list[dict]]:
+    """Each block's K training tasks (a Latin hypercube over its tau box) refined by CMA-ES, each task's
+    result cached in ``folder``; every search seeded by the run's seed, the block's index and the task's."""
+    results = {}
+    folder.mkdir(exist_ok=True)
+    total = len(blocks.names) * settings.tasks
+    done = sum((folder / f"{b}-{k}.json").is_file() for b in blocks.names for k in range(settings.tasks))
+    with progress_bar(total, "refining", "task", shown) as tasks_bar:
+        tasks_bar.update(done)
+        for index, block in enumerate(blocks.names):
+            bounds = blocks.bounds(block)
+            unit = qmc.LatinHypercube(d=len(bounds.names), seed=child_seed(settings.seed, index)).random(
+                settings.tasks
+            )
+            taus = qmc.scale(unit, bounds.low, bounds.high)
+            shape = MovementPrimitive.load(shapes[block])
+            task = None  # built (a world, its model) only if a training task is left to refine
+            results[block] = []
+            for k, tau in enumerate(taus):
+                path = folder / f"{block}-{k}.json"
+                if not path.is_file():
+                    task = task or blocks.refinement(block, str(shapes[block])).build()
+                    with progress_bar(
+                        settings.budget + 1, f"{block} {k + 1}/{settings.tasks}", "rollout", shown
+                    ) as bar:
+                        document = _refine_task(
+                            task,
+                            shape,
+                            tau,
+                            settings,
+                            seed=child_seed(settings.seed, index, k),
+                            progress=bar.update,
+                        )
+                    write_json(
+                        path, {"schema_version": SCHEMA_VERSION, "block": block, "task": k, **document}
+                    )
+                    tasks_bar.update()
+                results[block].append(read_json(path, LearnError))
+    return results
+
+
+def store_templates(
+    out: Path,
+    shapes: dict[str, Path],
+    refined: dict[str, list[dict]],
+    blocks: BuildingBlocks,
+    settings: LearnSettings,
+    record: dict,
+) -> tuple[str, ...]:
+    """One skill template per block in the pool ``out``, over its tau: the refined thetas of its training
+    tasks, the refinement's spread as the prior exploration of the forcing weights (all that was searched),
+    and the provenance (``record``'s recordings and settings, instances, workspace map, training)."""
+    pool = SkillTemplatePool(out)
+    for block in blocks.names:
+        prototype = MovementPrimitive.load(shapes[block])
+        runs = refined[block]
+        template = SkillTemplate(
+            block,
+            prototype,
+            np.array([run["tau"] for run in runs]),
+            np.array([run["theta"] for run in runs]),
+            blocks.bounds(block),
+            prior_spread=np.where(_forcing_weights(prototype), settings.spread, 0.0),
+            seed=settings.seed,
+            task=f"{blocks.task}/{robots.describe(blocks.robot).name}",
+            provenance={
+                "learner": "besman.learning.pipeline.learn",
+                "robot": blocks.robot,
+                "recordings": record["recordings"],
+                "instances": prototype.provenance.get("segments", []),
+                "workspace_map": prototype.provenance["retargeting"]["map"],
+                "training": [
+                    {
+                        "tau": run["tau"],
+                        "reward": run["reward"],
+                        "start_reward": run["start_reward"],
+                        "success": run["outcome"]["success"],
+                    }
+                    for run in runs
+                ],
+                "settings": record["settings"],
+            },
+        )
+        pool.add(template, overwrite=True)
+    return blocks.names
+
+
+def _refine_task(
+    task: BatchedTask,
+    shape: MovementPrimitive,
+    tau: np.ndarray,
+    settings: LearnSettings,
+    seed: int,
+    progress: Callable[[int], None],
+) -> dict:
+    """CMA-ES over the forcing weights of ``shape`` for one tau by rollouts of ``task`` (the shape's
+    thetas); the best theta, its outcome (the rollout's details) and the curve."""
+    theta0 = shape.theta.copy()
+    weights = _forcing_weights(shape)
+    outcomes = {}
+
+    def objective(candidates: np.ndarray, owners: np.ndarray) -> np.ndarray:
+        thetas = np.tile(theta0, (len(candidates), 1))
+        thetas[:, weights] = candidates
+        evaluation = task.evaluate(thetas, np.tile(tau, (len(candidates), 1)), backend=settings.backend)
+        for candidate, detail in zip(candidates, evaluation.details, strict=True):
+            outcomes[candidate.tobytes()] = detail
+        progress(len(candidates))
+        return evaluation.rewards
+
+    search = CMAES(WarmStart(theta0[weights], settings.spread), seed=seed)
+    result = policy_search(objective, [search], budget=settings.budget)[0]
+    theta = theta0.copy()
+    theta[weights] = result.best_theta
+    return {
+        "tau": [float(v) for v in tau],
+        "theta": theta.tolist(),
+        "reward": result.best_reward,
+        "start_reward": result.start_reward,
+        "rollouts": result.rollouts + 1,
+        "curve": result.curve().tolist(),
+        "outcome": dataclasses.asdict(outcomes[result.best_theta.tobytes()]),
+        "start_outcome": dataclasses.asdict(outcomes[theta0[weights].tobytes()]),
+    }
+
+
+def _forcing_weights(shape: MovementPrimitive) -> np.ndarray:
+    """A mask of theta's forcing weights (each DMP dimension's N weights, not its goal and goal velocity):
+    what refinement searches."""
+    mask = np.zeros((shape.dmp.n_dims, shape.dmp.n_weights + 2), dtype=bool)
+    mask[:, : shape.dmp.n_weights] = True
+    return mask.ravel()
+
+
+def _centre(blocks: BuildingBlocks, block: str) -> np.ndarray:
+    """The middle of a block's tau box: where its start anchors the workspace map and the retargeting."""
+    bounds = blocks.bounds(block)
+    return (np.asarray(bounds.low) + np.asarray(bounds.high)) / 2

@@ -1,0 +1,183 @@
+"""The throwing experiment's ``results.json``: every stage's distances summarised over grid targets and seeds
+together (mean +- SEM, median, failed throws), each method's rollouts, the field (every method against its
+total rollouts), the training sets' diagnostics, and the paper's claims and the goals judged by
+:mod:`besman.learning.throwing_claims`."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from besman.learning.throwing_bench import distances_of
+from besman.learning.throwing_claims import claims, goals, rollouts_to_reach
+from besman.learning.throwing_config import (
+    CONTEXTUAL_METHODS,
+    CURVE_METHODS,
+    SCHEMA_VERSION,
+    VARIANTS,
+    ZERO_SHOT_METHODS,
+)
+from besman.sim.throwing import FAILURE_REWARD
+
+if TYPE_CHECKING:  # the experiment wires the stages that the results are gathered from
+    from besman.learning.throwing_experiment import Experiment
+
+FAILED_DISTANCE = math.sqrt(-FAILURE_REWARD)  # 31.6 m: a failed throw is at least this far off
+
+
+def collect_results(experiment: Experiment) -> dict:
+    """Runs (or reads) every stage, in the protocol's order, and gathers them with the claims and goals."""
+    config, seeds = experiment.config, range(experiment.config.seeds)
+    spreads = {
+        "tabula_rasa": experiment.spreads.tabula_rasa(),
+        "nearest_start": experiment.spreads.nearest_start(experiment.training),
+    }
+    evaluation = experiment.evaluation
+    no_learning = np.tile(evaluation.no_learning(), config.seeds)
+    zero, refined, costs = {m: {} for m in ZERO_SHOT_METHODS}, {}, {}
+    for k in config.ks:
+        stages = [evaluation.per_k(seed, k) for seed in seeds]
+        for method in ZERO_SHOT_METHODS:
+            zero[method][k] = np.concatenate([s[f"zero_shot_{method}"] for s in stages])
+        refined[k] = np.concatenate([s["refined"] for s in stages])
+        costs[k] = _cost(experiment, k, "training")
+    curves = {m: np.concatenate([experiment.curves.curves(seed, m) for seed in seeds]) for m in CURVE_METHODS}
+    contextual = {}
+    for method in CONTEXTUAL_METHODS:
+        stages = [experiment.curves.contextual(seed, method) for seed in seeds]
+        contextual[method] = (
+            stages[0]["rollouts"],
+            np.concatenate([s["distances"] for s in stages], axis=1),
+        )
+    variants = {
+        v: {
+            k: (
+                np.concatenate([evaluation.variant_zero_shot(s, k, v) for s in seeds]),
+                _cost(experiment, k, v),
+            )
+            for k in config.ks
+        }
+        for v in VARIANTS
+    }
+    results = {
+        "schema_version": SCHEMA_VERSION,
+        "kind": "besman-throwing-experiment",
+        "config": {**json.loads(json.dumps(asdict(config))), "backend": experiment.backend},
+        "spreads": {
+            method: {
+                "candidates": stage["spreads"].tolist(),
+                "areas_under_curve": stage["scores"].tolist(),
+                "chosen": float(stage["chosen"]),
+                "rollouts": int(stage["rollouts"]),
+            }
+            for method, stage in spreads.items()
+        },
+        "no_learning": summary(no_learning),
+        "zero_shot": {m: {str(k): summary(v) for k, v in by_k.items()} for m, by_k in zero.items()},
+        "template_refined": {str(k): summary(v) for k, v in refined.items()},
+        "curves": {
+            m: [[r, *summary(v[:, r]).values()] for r in range(v.shape[1])] for m, v in curves.items()
+        },
+        "contextual": {
+            m: [[int(r), *summary(d[i]).values()] for i, r in enumerate(rollouts)]
+            for m, (rollouts, d) in contextual.items()
+        },
+        "variants": {
+            v: {str(k): {**summary(d), "rollouts": c} for k, (d, c) in by_k.items()}
+            for v, by_k in variants.items()
+        },
+        "rollouts": {str(k): c for k, c in costs.items()},
+    }
+    results["field"] = field_series(results)
+    results["rollouts_to_half_metre"] = {
+        m: rollouts_to_reach(rows, 0.5) for m, rows in results["field"].items()
+    }
+    results["training"] = [_diagnose_training(experiment, seed) for seed in seeds]
+    results["claims"] = claims(results)
+    results["goals"] = goals(results)
+    return results
+
+
+def _cost(experiment: Experiment, k: int, source: str) -> dict[str, float]:
+    """Mean rollouts over seeds behind the first k tasks of ``source``: their training, and the shared
+    template's leave-one-out throws for its kernel."""
+    seeds = range(experiment.config.seeds)
+    return {
+        "training": float(np.mean([experiment.training.of(s, source)["rollouts"][:k].sum() for s in seeds])),
+        "kernel_choice": float(
+            np.mean([int(experiment.templates.kernel_choice(s, k, source)["rollouts"]) for s in seeds])
+        ),
+    }
+
+
+def _diagnose_training(experiment: Experiment, seed: int) -> dict:
+    """How the training set looks to a template: the training thetas' own distances, how far they drifted
+    from theta_0, whether theta distances follow target distances, and the kernels chosen."""
+    training = experiment.training.paper(seed)
+    taus, thetas = training["taus"], training["thetas"]
+    pairs = np.triu_indices(len(taus), 1)
+    tau_gaps = np.linalg.norm(taus[:, None] - taus[None], axis=2)[pairs]
+    theta_gaps = np.linalg.norm(thetas[:, None] - thetas[None], axis=2)[pairs]
+    return {
+        "seed": seed,
+        "trained_distance": float(distances_of(training["rewards"]).mean()),
+        "theta_vs_tau_distance_correlation": float(np.corrcoef(tau_gaps, theta_gaps)[0, 1]),
+        "theta_drift_from_theta0": float(np.linalg.norm(thetas - experiment.bench.theta0, axis=1).mean()),
+        "kernels": {
+            str(k): {
+                "kernel": json.loads(str(choice["kernel"])),
+                "leave_one_out_distances": choice["losses"].tolist(),
+            }
+            for k in experiment.config.ks
+            for choice in [experiment.templates.kernel_choice(seed, k)]
+        },
+    }
+
+
+def summary(values: np.ndarray) -> dict:
+    """Mean, its standard error, median and the number of failed throws (and how many there are)."""
+    values = np.asarray(values, dtype=float)
+    sem = float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else 0.0
+    return {
+        "mean": float(values.mean()),
+        "sem": sem,
+        "median": float(np.median(values)),
+        "failed": int((values >= FAILED_DISTANCE - 1e-9).sum()),
+        "count": len(values),
+    }
+
+
+def field_series(results: dict) -> dict[str, list[list[float]]]:
+    """Every method as rows [total rollouts, mean, sem, median, failed] on the grid (module documentation):
+    a zero-shot method at K costs K training tasks (and the template its kernel choice), a refinement its
+    start's cost plus the rollouts of the new task."""
+    config, costs = results["config"], {int(k): c for k, c in results["rollouts"].items()}
+    training = {k: c["training"] for k, c in costs.items()}
+    template = {k: c["training"] + c["kernel_choice"] for k, c in costs.items()}
+
+    def row(x, s):
+        return [float(x), s["mean"], s["sem"], s["median"], s["failed"]]
+
+    series = {"no_learning": [row(0, results["no_learning"])]}
+    for method, by_k in results["zero_shot"].items():
+        cost = template if method == "template" else training
+        series[f"zero_shot_{method}"] = [row(cost[int(k)], s) for k, s in by_k.items()]
+    series["template_refined"] = [
+        row(template[int(k)] + config["refine_rollouts"], s) for k, s in results["template_refined"].items()
+    ]
+    for method, rows in results["curves"].items():
+        start = {"tabula_rasa": 0, "nearest_start": training[config["curve_k"]]}.get(
+            method, template[config["curve_k"]]
+        )
+        series[f"curve_{method}"] = [[start + r[0], *r[1:]] for r in rows]
+    for method, rows in results["contextual"].items():
+        series[method] = [[float(r[0]), *r[1:]] for r in rows]
+    for variant, by_k in results["variants"].items():
+        series[f"variant_{variant}"] = [
+            row(s["rollouts"]["training"] + s["rollouts"]["kernel_choice"], s) for s in by_k.values()
+        ]
+    return series

@@ -1,0 +1,85 @@
+"""Stage 2 of the throwing experiment: skill templates of the first K tasks of a training set - the
+shared-kernel model (:mod:`besman.skills.template_models`), its kernel chosen by leave-one-out throws at the
+training targets (:mod:`besman.learning.template_selection`, rollouts counted), its prior exploration the
+tabula-rasa spread."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from besman.learning.template_selection import choose_kernel
+from besman.learning.throwing_bench import ThrowingBench
+from besman.learning.throwing_output import RunFolder
+from besman.learning.throwing_spreads import Spreads
+from besman.skills import MovementPrimitive
+from besman.skills.template import SkillTemplate
+from besman.skills.template_models import SharedKernel
+
+if TYPE_CHECKING:  # the bootstrapped training set is learned from templates of its first tasks
+    from besman.learning.throwing_training import TrainingSets
+
+
+@dataclass
+class TemplateBuilder:
+    """Makes a template from training targets and thetas, its prior the spread of the set's source."""
+
+    bench: ThrowingBench
+    spreads: Spreads
+
+    def build(self, taus, thetas, kernel: SharedKernel, source: str = "training") -> SkillTemplate:
+        prototype = MovementPrimitive(self.bench.task.dmp, "throw", robot="pa10", group="arm")
+        return SkillTemplate(
+            "throw",
+            prototype,
+            taus,
+            thetas,
+            self.bench.task.bounds,
+            kernel=kernel,
+            prior_spread=self._prior_spread(source),
+            task=f"throwing/{self.bench.config.variant}",
+        )
+
+    def _prior_spread(self, source: str) -> np.ndarray:
+        theta0, spread = self.bench.theta0, self.spreads.tabula_rasa_spread
+        prior = np.full(theta0.size, spread)
+        if source == "goal_only":  # nothing else is ever searched
+            prior = np.zeros(theta0.size)
+            prior[self.bench.goal_entries] = spread
+        return prior
+
+
+@dataclass
+class Templates:
+    """A seed's template of the first k tasks of a training set, with its kernel choice."""
+
+    bench: ThrowingBench
+    folder: RunFolder
+    training: TrainingSets
+    builder: TemplateBuilder
+
+    def kernel_choice(self, seed: int, k: int, source: str = "training") -> dict[str, np.ndarray]:
+        """The shared kernel for the first k tasks of ``source``, by leave-one-out throws."""
+
+        def compute():
+            data = self.training.of(seed, source)
+            choice = choose_kernel(
+                data["taus"][:k], data["thetas"][:k], self.bench.task.bounds, self.bench.distances
+            )
+            return {
+                "kernel": np.array(json.dumps(asdict(choice.kernel))),
+                "losses": np.array(choice.losses),
+                "rollouts": np.array(choice.rollouts),
+            }
+
+        return self.folder.stage(f"seed{seed}_{source}_k{k}_kernel", compute)
+
+    def template(self, seed: int, k: int, source: str = "training") -> SkillTemplate:
+        data = self.training.of(seed, source)
+        kernel = SharedKernel(**json.loads(str(self.kernel_choice(seed, k, source)["kernel"])))
+        template = self.builder.build(data["taus"][:k], data["thetas"][:k], kernel, source)
+        template.provenance = {"experiment": "throwing", "seed": seed, "training_tasks": k, "source": source}
+        return template

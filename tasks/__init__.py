@@ -1,0 +1,69 @@
+"""The tasks: one module (or small package) per task, and the registry that every part of besman reads.
+
+A task (:class:`~besman.tasks.base.Task`) says in one place what it is, what is randomised and what counts
+as success; its task values tau per robot; which robots it fits; the world it builds; its default tree file;
+the one rule that judges a run (demos, ``besman run``, learning rewards and benchmarks alike); its batched
+evaluate for policy search; and the building blocks it learns. :data:`TASKS` holds every task of this
+package - a module that defines ``TASKS`` (a tuple of tasks) is registered as it is added, so adding a task
+is adding its module - and those of installed distributions that name a module with ``TASKS`` under the
+entry point group ``besman.tasks`` (the documentation's "Add a task" page). A demo is a task run with its
+default tree and a seed (:mod:`besman.tasks.running`).
+
+``besman tasks``, ``besman demo``, ``besman run``, ``besman learn`` and the experiments find tasks here.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from importlib.metadata import entry_points
+
+from besman.skills.errors import UnknownNameError
+from besman.tasks.base import Task
+
+DEFAULT = "pick-place"  # the task of ``besman demo`` without a name, and of ``besman learn``
+FRAMEWORK = ("base", "running", "session")  # modules of this package that are not tasks
+
+
+ENTRY_POINTS = "besman.tasks"  # the group under which other distributions name their task modules
+
+
+def _modules():
+    """The task modules: this package's, then those other distributions name (:data:`ENTRY_POINTS`)."""
+    for module in pkgutil.iter_modules(__path__):
+        if module.name not in FRAMEWORK:
+            yield importlib.import_module(f"{__name__}.{module.name}")
+    for point in entry_points(group=ENTRY_POINTS):
+        yield point.load()
+
+
+def _registered() -> dict[str, Task]:
+    found: dict[str, Task] = {}
+    for module in _modules():
+        for entry in getattr(module, "TASKS", ()):
+            for name in (entry.name, *entry.aliases):
+                if name in found:
+                    raise RuntimeError(f"two tasks are called {name!r}: {found[name]!r} and {entry!r}")
+                found[name] = entry
+    return found
+
+
+_BY_NAME = _registered()
+# The default task first, then the others in the order of their modules.
+TASKS: dict[str, Task] = {
+    name: entry
+    for name, entry in sorted(_BY_NAME.items(), key=lambda item: item[0] != DEFAULT)
+    if name == entry.name
+}
+
+
+def task_names() -> list[str]:
+    """Every name a tree file's ``task`` may have: the tasks' names and their aliases."""
+    return list(_BY_NAME)
+
+
+def task(name: str) -> Task:
+    """The registry's task ``name`` (or one of its aliases); an unknown name lists the tasks."""
+    if name not in _BY_NAME:
+        raise UnknownNameError(f"unknown task {name!r}; tasks: {', '.join(TASKS)}")
+    return _BY_NAME[name]

@@ -1,0 +1,222 @@
+"""What every task is: its named task values, the robots it fits, its world, its default tree and its one
+success rule.
+
+A :class:`Task` is written once per task (one module of :mod:`besman.tasks`) and is independent of the
+robot it runs on; what differs per robot (where the table's objects and targets may be) lives in the task's
+module too, keyed by robot name, and a robot the task does not know brings its numbers in its description
+(``"tasks": {"<task>": {...}}``, :meth:`Task.robot_numbers`).
+
+tau, the task parameters that skill templates generalise over, is the concatenation of the task's
+:class:`TaskValue` s: named groups of numbers (``object``: x, y in m) that ``--set NAME=...`` sets and that
+the tree finds on the blackboard as ``/task/NAME``. A run draws the values it is not given uniformly from
+the robot's bounds with its seed; without a seed it uses the task's default configuration.
+
+A task sets a run up in :meth:`Task.scene` (the world with its objects placed, the executor, the blackboard
+values, what happens that the robot does not plan) and judges it with :meth:`Task.judge`: the one rule that
+the demos, ``besman run``, learning rewards and the benchmarks all use.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from besman import examples
+from besman.skills.errors import InputError, UnknownNameError
+from besman.skills.tasks import TaskBounds
+
+Observer = Callable[[Any, dict], None]  # (runner, tick record) -> None, after every tick
+
+
+@dataclass(frozen=True)
+class TaskValue:
+    """A named part of tau: ``names`` of its numbers (tau's columns), their ``unit`` and what it is.
+    ``whole``: its numbers are whole (an index; drawn as whole numbers, given as such). ``surface``: it is
+    an x, y point on the world's surface of that name (the viewer's session drags it there); ``target``:
+    it is where the task wants something (the viewer marks it)."""
+
+    name: str
+    names: tuple[str, ...]
+    unit: str
+    meaning: str
+    whole: bool = False
+    surface: str | None = None
+    target: bool = False
+
+
+@dataclass
+class Scene:
+    """A task set up for one run: the executor (its world with the robot and the objects placed), the
+    ``/task/`` values of the blackboard, the configuration to log (``settings``), an observer of every tick
+    for what happens that the robot does not plan (a disturbance, a contact count), and ``judge``: the
+    task's success rule applied to this scene once the run has ended."""
+
+    executor: Any
+    values: dict
+    settings: dict
+    judge: Callable[[], Any]  # -> besman.trees.summary.Measured
+    observe: Observer | None = None
+
+
+class Task:
+    """A task of the registry; a subclass per task sets the class attributes and the methods below."""
+
+    name: ClassVar[str]
+    title: ClassVar[str]  # one line: what the task is
+    randomised: ClassVar[str]  # what a seed draws
+    success: ClassVar[str]  # what counts as success (the rule of judge, in words)
+    robot: ClassVar[str]  # the robot it runs on by default
+    tree: ClassVar[str | None] = None  # its default tree file, in ``trees`` (None: no demo)
+    trees: ClassVar[Path] = examples.path("trees")  # the folder of its tree: besman's examples by default
+    aliases: ClassVar[tuple[str, ...]] = ()  # other names it answers to (the demos' earlier names)
+    values: ClassVar[tuple[TaskValue, ...]] = ()
+    measurements: ClassVar[Mapping[str, str]] = {}  # what judge measures: name -> meaning
+    max_sim_time: ClassVar[float] = 120.0  # s of simulated time a run may take
+
+    # -- what a subclass defines ---------------------------------------------------------------------------
+
+    def fits(self, robot) -> bool:
+        """Whether the task runs on ``robot`` (a :class:`~besman.robots.RobotDescription`)."""
+        raise NotImplementedError
+
+    def bounds(self, robot: str) -> TaskBounds:
+        """tau's box on ``robot``."""
+        raise NotImplementedError
+
+    def scene(self, robot: str, values: dict[str, np.ndarray], seed: int | None) -> Scene:
+        """The task set up on ``robot`` for the task values ``values`` (all of them, checked), ``seed``
+        drawing whatever else the task randomises."""
+        raise NotImplementedError
+
+    def default_values(self, robot: str) -> dict[str, np.ndarray]:
+        """The values of a run without a seed: the middle of tau's box (whole values rounded down)."""
+        bounds = self.bounds(robot)
+        middle = (np.asarray(bounds.low) + np.asarray(bounds.high)) / 2
+        whole = self._whole_columns()
+        middle[whole] = np.floor(middle[whole])
+        return self.split(middle)
+
+    def batched(self, robot: str):
+        """The task as a :class:`~besman.sim.evaluation.BatchedTask` (thetas of a scripted plan, taus) for
+        policy search, or None if the task has no scripted plan."""
+        return None
+
+    def building_blocks(self, robot: str):
+        """The blocks that learning imitates and refines for this task on ``robot``
+        (:class:`~besman.learning.blocks.BuildingBlocks`), or None if the task learns none."""
+        return None
+
+    def facts(self, robot: str) -> dict:
+        """More JSON-ready facts of the task on ``robot`` for ``besman tasks show`` (e.g. its areas)."""
+        return {}
+
+    # -- shared --------------------------------------------------------------------------------------------
+
+    @property
+    def tree_path(self) -> Path | None:
+        return None if self.tree is None else Path(self.trees) / self.tree
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """tau's names, in order."""
+        return tuple(name for value in self.values for name in value.names)
+
+    def check_robot(self, robot: str | None) -> str:
+        """``robot`` (default: the task's own) if the task fits it; otherwise an error naming the robots
+        that fit, before any work."""
+        import besman.robots as robots
+
+        return robots.choose(robot, self.robot, self.fits, f"task {self.name}")
+
+    def robot_numbers(self, robot: str, known: Mapping[str, Any], parse: Callable[[dict, str, Any], Any]):
+        """The task's numbers for ``robot``: ``known`` ones (by the robot's name) or those its description
+        brings under ``"tasks": {"<task>": {...}}`` (read by ``parse(section, where, tabletop)``, whose errors
+        name the file and field; ``tabletop`` is the robot's work surface, or None); None if neither has
+        them."""
+        import besman.robots as robots
+
+        description = robots.describe(robot)
+        section = description.tasks.get(self.name)
+        if section is not None:
+            return parse(section, f"{description.file}: tasks.{self.name}", description.tabletop)
+        return known.get(description.name)
+
+    def split(self, tau) -> dict[str, np.ndarray]:
+        """tau as its named values."""
+        tau, start, values = np.asarray(tau, dtype=float), 0, {}
+        for value in self.values:
+            values[value.name] = tau[start : start + len(value.names)]
+            start += len(value.names)
+        return values
+
+    def join(self, values: Mapping[str, Any]) -> np.ndarray:
+        """The named values as tau."""
+        return np.concatenate(
+            [np.empty(0), *(np.asarray(values[value.name], dtype=float) for value in self.values)]
+        )
+
+    def resolve(self, robot: str, given: Mapping[str, Any], seed: int | None) -> dict[str, np.ndarray]:
+        """Every task value of a run: the ``given`` ones (checked: known names, right counts, inside the
+        robot's box), the others drawn from the box with ``seed`` or, without one, the task's defaults."""
+        by_name = {value.name: value for value in self.values}
+        unknown = sorted(set(given) - set(by_name))
+        if unknown:
+            raise UnknownNameError(
+                f"--set {unknown[0]}: not a value of task {self.name}; its values: "
+                + (", ".join(by_name) or "none")
+            )
+        bounds = self.bounds(robot)
+        if seed is None:
+            values = self.default_values(robot)
+        else:
+            values = self.split(self.draw(robot, np.random.default_rng(seed)))
+        for name, numbers in given.items():
+            numbers = np.asarray(numbers, dtype=float).ravel()
+            value = by_name[name]
+            if len(numbers) != len(value.names):
+                raise InputError(
+                    f"--set {name} needs {len(value.names)} number(s) ({', '.join(value.names)}), got "
+                    f"{len(numbers)}"
+                )
+            if value.whole and not np.array_equal(numbers, np.round(numbers)):
+                raise InputError(f"--set {name}: {', '.join(value.names)} must be whole numbers")
+            values[name] = numbers
+        bounds.check(self.join(values))  # a value outside the box is refused with its name and the box
+        return values
+
+    def draw(self, robot: str, rng: np.random.Generator) -> np.ndarray:
+        """A tau drawn uniformly from the robot's box (whole values: each whole number equally likely)."""
+        bounds = self.bounds(robot)
+        low, high = np.asarray(bounds.low), np.asarray(bounds.high)
+        tau = rng.uniform(low, high)
+        whole = self._whole_columns()
+        tau[whole] = rng.integers(low[whole], high[whole] + 1)
+        return tau
+
+    def _whole_columns(self) -> np.ndarray:
+        return np.array([value.whole for value in self.values for _ in value.names], dtype=bool)
+
+    def describe(self, robot: str | None = None) -> dict:
+        """The task on ``robot`` as JSON-ready facts: name, robot, what it is, what is randomised, success,
+        tau's box, its default tree and the task's own facts."""
+        robot = self.check_robot(robot)
+        import besman.robots as robots
+
+        return {
+            "task": self.name,
+            "robot": robots.describe(robot).name,
+            "title": self.title,
+            "randomised": self.randomised,
+            "success": self.success,
+            "tree": self.tree,
+            "values": {
+                value.name: {"names": list(value.names), "unit": value.unit, "meaning": value.meaning}
+                for value in self.values
+            },
+            "bounds": self.bounds(robot).as_dict(),
+            **self.facts(robot),
+        }

@@ -1,0 +1,200 @@
+"""Handover: a two-arm robot's left hand hands a bar to its right hand, which puts it on the shelf (default
+tree ``handover.yaml``).
+
+The left arm picks the 26 cm bar from the table's left side at one end while the right arm waits at the
+``ready`` pose; the left presents the bar in front of the body (``present``), the right hand takes the
+other end, the left lets go, rises and goes home, and the right arm puts the bar on the shelf. The poses and
+areas are the robot's (:data:`HANDOVER`, or its description's ``tasks.handover`` section: ``bar`` and
+``places`` areas, ``ready`` and ``present`` hand poses, read as :func:`~besman.robots.description.read_area`
+and :func:`~besman.robots.description.read_hand_pose` read them).
+
+- **Randomised**: tau = ``bar`` (x, y of its middle on the table) and ``place`` (x, y of its target on the
+  shelf), drawn uniformly from the robot's areas, bar first. Without a seed: the middle of both areas.
+- **Success**: the bar passes pick and place's rule (:func:`~besman.sim.outcomes.placement`: after
+  0.3 s to settle it lies level, tilt < 10 deg, on the shelf within 2 cm of the place) and the two arms
+  never touched (:class:`ArmContacts`: no tick with a contact between them in the simulation).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from besman.skills.errors import InputError
+from besman.skills.tasks import TaskBounds
+from besman.tasks.base import Scene, Task, TaskValue
+
+if TYPE_CHECKING:
+    from besman.sim.executor import Executor
+
+Area = tuple[tuple[float, float], tuple[float, float]]  # (x0, x1), (y0, y1) in m
+
+
+@dataclass(frozen=True)
+class HandoverNumbers:
+    """A robot's handover: where the left hand picks the bar on the table, where the right hand puts it on
+    the shelf (areas), where the right hand waits and where the left presents the bar (hand poses, as the
+    tree reads them: ``{"position": [x, y, z], "yaw": rad}``, yaw optional)."""
+
+    bar: Area
+    places: Area
+    ready: dict
+    present: dict
+
+
+# Each robot's README says where its numbers come from (the OpenArm's bar area is the left hand's mirror of
+# the right's reach; its right hand waits near home).
+HANDOVER = {
+    "aila": HandoverNumbers(
+        bar=((0.45, 0.5), (0.15, 0.22)),
+        places=((0.5, 0.55), (-0.45, -0.38)),
+        ready={"position": (0.5, -0.25, 0.95), "yaw": -0.8},
+        present={"position": (0.44, 0.06, 0.86)},
+    ),
+    "openarm": HandoverNumbers(
+        bar=((0.18, 0.26), (0.08, 0.16)),
+        places=((0.18, 0.26), (-0.42, -0.38)),
+        ready={"position": (0.23, -0.16, 1.02)},
+        present={"position": (0.25, 0.06, 0.95)},
+    ),
+}
+ARMS = ("right", "left")  # the right arm places, the left picks
+
+
+def _read_handover(section: dict, where: str, layout) -> HandoverNumbers:
+    """A description's ``tasks.handover``, its areas on ``layout``'s table and shelf."""
+    from besman.robots.description import read_area, read_hand_pose
+    from besman.robots.description import section as fields
+
+    section = fields(section, where, ("bar", "places", "ready", "present"))
+    return HandoverNumbers(
+        bar=read_area(section["bar"], f"{where}.bar", layout.table),
+        places=read_area(section["places"], f"{where}.places", layout.shelf),
+        ready=asdict(read_hand_pose(section["ready"], f"{where}.ready")),
+        present=asdict(read_hand_pose(section["present"], f"{where}.present")),
+    )
+
+
+class ArmContacts:
+    """An observer of two arms, every tick: the ticks at which they touch (a contact between their collision
+    geoms in the simulation) and the closest they came (MuJoCo's geom distance, searched up to 0.5 m)."""
+
+    def __init__(self, first: Executor, second: Executor) -> None:
+        from besman.sim.proximity import ArmProximity, moved_geoms
+
+        self.world = first.world
+        self.first, self.second = np.array(moved_geoms(first)), np.array(moved_geoms(second))
+        self.proximity = ArmProximity(first, second)
+        self.touching = 0
+        self.closest = 0.5
+
+    def __call__(self, runner, record: dict) -> None:
+        data = self.world.data
+        geoms = data.contact.geom[: data.ncon]
+        one = np.isin(geoms[:, 0], self.first) & np.isin(geoms[:, 1], self.second)
+        other = np.isin(geoms[:, 1], self.first) & np.isin(geoms[:, 0], self.second)
+        self.touching += bool((one | other).any())
+        self.closest = min(self.closest, self.proximity.distance(self.closest))
+
+
+class Handover(Task):
+    name = "handover"
+    title = "the left hand picks a bar and hands it to the right, which puts it on the shelf"
+    randomised = "where the bar lies on the table and its target on the shelf (tau)"
+    success = (
+        "after settling 0.3 s the bar lies level (tilt < 10 deg) on the shelf within 2 cm of the target, "
+        "and the arms never touched"
+    )
+    robot = "aila"
+    tree = "handover.yaml"
+    values = (
+        TaskValue("bar", ("bar_x", "bar_y"), "m", "where the bar's middle lies on the table"),
+        TaskValue("place", ("place_x", "place_y"), "m", "where the bar goes on the shelf"),
+    )
+    measurements: ClassVar[Mapping[str, str]] = {
+        "placement_error_m": "the bar's distance from its place on the shelf, in the plane",
+        "tilt_deg": "the bar's tilt from level",
+        "ticks_arms_touching": "ticks at which the two arms touched in the simulation (success: none)",
+        "arms_closest_m": "the closest the arms came (searched up to 0.5 m)",
+    }
+
+    def numbers(self, robot: str) -> HandoverNumbers | None:
+        """The handover on ``robot``: :data:`HANDOVER`'s or its description's ``tasks.handover``; None if
+        neither has it, or the robot has no tabletop."""
+        import besman.robots as robots
+
+        if robots.describe(robot).tabletop is None:
+            return None
+        return self.robot_numbers(robot, HANDOVER, _read_handover)
+
+    def fits(self, robot) -> bool:
+        """Two arms "right" and "left", each with a gripper, and the robot's handover numbers."""
+        arms = robot.arms
+        return all(side in arms and arms[side].gripper is not None for side in ARMS) and (
+            self.numbers(str(robot.folder)) is not None
+        )
+
+    def bounds(self, robot: str) -> TaskBounds:
+        numbers = self.numbers(robot)
+        if numbers is None:
+            raise InputError(
+                f"robot {robot!r} has no handover numbers (its description's tasks.handover): task "
+                f"{self.name} does not run on it"
+            )
+        (bx, by), (px, py) = numbers.bar, numbers.places
+        return TaskBounds(self.names, (bx[0], by[0], px[0], py[0]), (bx[1], by[1], px[1], py[1]))
+
+    def draw(self, robot: str, rng: np.random.Generator) -> np.ndarray:
+        """As :meth:`Task.draw`, to 0.1 mm: a seed gives the configuration it gave the handover demo."""
+        return super().draw(robot, rng).round(4)
+
+    def scene(self, robot: str, values, seed: int | None) -> Scene:
+        from besman.sim.executor import Executor
+        from besman.sim.world import GraspableObject, tabletop_world
+
+        numbers = self.numbers(robot)
+        # A bar, so that two hands can hold it at once from above, 12 cm apart: 26 x 4 x 4 cm, along y.
+        bar = GraspableObject("bar", size=(0.02, 0.13, 0.02), mass=0.2, rgba=(0.85, 0.65, 0.15, 1.0))
+        world = tabletop_world((bar,), robot)
+        world.place_on("bar", "table", *values["bar"])
+        # Both arms at once: the waist they share is held (a turning torso would carry the left hand, and
+        # the bar, with it).
+        executor = Executor(world, ARMS)
+        contacts = ArmContacts(executor, executor.arm_executor("left"))
+        return Scene(
+            executor,
+            {**values, "ready": numbers.ready, "present": numbers.present},
+            {name: value.tolist() for name, value in values.items()},
+            lambda: self.judge(world, values["place"], contacts),
+            observe=contacts,
+        )
+
+    def judge(self, world, place, contacts: ArmContacts):
+        """The success rule on ``world`` as it stands (see the module documentation)."""
+        from besman.sim.outcomes import placement
+        from besman.trees.summary import Measured
+
+        placed = placement(world, "bar", place)
+        return Measured(
+            placed.success and contacts.touching == 0,
+            f"placement error {placed.error * 100:.1f} cm"
+            + ("" if placed.success else f" ({placed.message})")
+            + f"; the arms came within {contacts.closest * 100:.1f} cm and touched at {contacts.touching} "
+            "ticks",
+            {
+                "placement_error_m": round(placed.error, 4),
+                "tilt_deg": round(placed.tilt_degrees, 2),
+                "ticks_arms_touching": contacts.touching,
+                "arms_closest_m": round(contacts.closest, 4),
+            },
+        )
+
+    def facts(self, robot: str) -> dict:
+        numbers = self.numbers(robot)
+        return {"handover": {"ready": numbers.ready, "present": numbers.present}}
+
+
+TASKS = (Handover(),)
