@@ -49,10 +49,11 @@ def _registered() -> dict[str, Task]:
 
 
 _BY_NAME = _registered()
-# The default task first, then the others in the order of their modules.
+_FIRST = type(_BY_NAME[DEFAULT]).__module__
+# The default task's module first (the default task, then its module's others), then the other modules'.
 TASKS: dict[str, Task] = {
     name: entry
-    for name, entry in sorted(_BY_NAME.items(), key=lambda item: item[0] != DEFAULT)
+    for name, entry in sorted(_BY_NAME.items(), key=lambda item: type(item[1]).__module__ != _FIRST)
     if name == entry.name
 }
 

@@ -133,9 +133,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _demo(args: argparse.Namespace) -> int:
     check_view(args)
-    from besman.skills.storage import check_output
     from besman.tasks import DEFAULT, TASKS, task
-    from besman.trees.runner import LOG_KIND
 
     if args.list:
         for entry in TASKS.values():
@@ -147,6 +145,9 @@ def _demo(args: argparse.Namespace) -> int:
         demos = ", ".join(name for name, entry in TASKS.items() if entry.tree is not None)
         raise InputError(f"task {chosen.name} has no demo (no default tree); demos: {demos}")
     if args.log:
+        from besman.skills.storage import check_output
+        from besman.trees.runner import LOG_KIND
+
         check_output(args.log, option="--log", suffixes=(".jsonl",), kind=LOG_KIND)
     args.robot = chosen.check_robot(args.robot)
     if not args.json:
