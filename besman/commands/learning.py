@@ -61,7 +61,7 @@ def register(commands) -> None:
     learn.add_argument(
         "--task",
         default=None,
-        help="the task whose building blocks to learn (default: pick-place; besman tasks lists them)",
+        help="the task whose building blocks to learn (default: the first that besman tasks lists)",
     )
     learn.add_argument("--robot", help="the robot (default: the task's)")
     learn.add_argument(

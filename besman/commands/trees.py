@@ -236,9 +236,9 @@ def register(commands) -> None:
     run.set_defaults(handler=_run)
 
     demo = commands.add_parser(
-        "demo", help="run a task's demo, its default tree (besman demo --list); default: pick-place"
+        "demo", help="run a task's demo, its default tree (besman demo --list; default: the first listed)"
     )
-    demo.add_argument("name", nargs="?", default=None, help="the task (default: pick-place)")
+    demo.add_argument("name", nargs="?", default=None, help="the task (default: the first --list lists)")
     demo.add_argument("--list", action="store_true", help="list the demos and exit")
     demo.add_argument("--robot", default=None, help="the robot (default: the task's; besman demo --list)")
     demo.add_argument(
