@@ -188,7 +188,7 @@ class Session:
 
     def _new_runner(self, prepared: TaskRun) -> Runner:
         self._watch, self._breakpoint_hit = None, False
-        self._made_with = dict(getattr(self, "values", {}))
+        self._made_with = dict(self.values)
         self.prepared, runner = prepared, prepared.runner
         runner.observe = observers(runner.observe, self._observe)  # the task's own observer first
         return runner

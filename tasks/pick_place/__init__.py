@@ -169,9 +169,6 @@ class Pick(PickPlace):
         "box_position": "where the box ended, x, y, z in the world",
     }
 
-    def bounds(self, robot: str) -> TaskBounds:
-        return super().bounds(robot).columns(OBJECT.names)
-
     def judge(self, executor, values):
         from besman.tasks.pick_place.rule import measure_lift
 

@@ -39,8 +39,9 @@ def full_tau(block: str, tau, robot: str = "aila") -> np.ndarray:
     """The pick-and-place tau of a block's tau; the parameters it does not use sit at the bounds' centre."""
     from besman.tasks.pick_place import PickPlace
 
-    tau = block_bounds(block, robot).check(tau)[0]
+    check_block(block)
     bounds = PickPlace().bounds(robot)
+    tau = bounds.columns(BLOCK_PARAMETERS[block]).check(tau)[0]
     full = (np.asarray(bounds.low) + np.asarray(bounds.high)) / 2
     for value, name in zip(tau, BLOCK_PARAMETERS[block], strict=True):
         full[bounds.names.index(name)] = value
