@@ -108,7 +108,12 @@ def throwing(repeats: int) -> dict:
 
 def pick_and_place() -> dict:
     task = PickPlaceTask()
-    taus = [[0.5, -0.1, 0.5, -0.4], [0.6, -0.05, 0.58, -0.45], [0.55, -0.12, 0.47, -0.36]]
+    box = (0.0, 0.06, 0.06, 0.06)  # pick and place's 6 cm box; every yaw 0
+    taus = [
+        [0.5, -0.1, 0.0, 0.5, -0.4, 0.0, *box],
+        [0.6, -0.05, 0.0, 0.58, -0.45, 0.0, *box],
+        [0.55, -0.12, 0.0, 0.47, -0.36, 0.0, *box],
+    ]
     start = time.perf_counter()
     details = [task.episode(tau) for tau in taus]
     wall = time.perf_counter() - start
@@ -125,7 +130,8 @@ def pick_and_place() -> dict:
 
 def block_rollouts(repeats: int) -> dict:
     task = BlockTaskConfig("reach", str(REACH)).build()
-    taus = np.array([[0.5, -0.1], [0.6, -0.05], [0.55, -0.12], [0.47, -0.02]])
+    box = (0.54, -0.41, 0.0, 0.0, 0.06, 0.06, 0.06)  # the place and pick and place's 6 cm box
+    taus = np.array([[x, y, 0.0, *box] for x, y in ((0.5, -0.1), (0.6, -0.05), (0.55, -0.12), (0.47, -0.02))])
     thetas = np.tile(task.shape.theta, (len(taus), 1))
 
     def chunked():

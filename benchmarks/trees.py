@@ -26,7 +26,13 @@ from besman.sim.world import tabletop_world
 from besman.tasks.running import prepare
 from besman.trees import grasp_then_place
 
-SETTINGS = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
+# pick and place's 6 cm box at the task's default configuration (the seeds draw its mass and friction)
+SETTINGS = {
+    "object": (0.55, -0.08, 0.0),
+    "place": (0.54, -0.41, 0.0),
+    "shape": (0,),
+    "size": (0.06, 0.06, 0.06),
+}
 RAW_SECONDS = 10.0  # simulated seconds of raw stepping per measurement
 TARGET_RATIO = 0.3
 

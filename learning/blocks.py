@@ -10,8 +10,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from besman.skills.tasks import TaskBounds
-
 
 @dataclass(frozen=True)
 class BuildingBlocks:
@@ -25,13 +23,17 @@ class BuildingBlocks:
             (clusters named ``block1``... in the order they come in the task) and ``"examples"`` (the
             labels of annotated example recordings).
         anchors: two blocks whose goals, in the person's workspace and in the robot's, fit the map between
-            the two (:func:`~besman.learning.retargeting.fit_workspace_map`).
-        bounds: a block's tau box.
-        world: a new world of the task on the robot.
+            the two (:func:`~besman.learning.retargeting.fit_workspace_map`), at the task tau ``centre``.
+        centre: the task tau where the blocks are retargeted.
+        draw: ``draw(count, seed)``: ``count`` training task taus spread over the task's box.
+        world: ``world(tau)``: a new world of the task on the robot for task ``tau`` (its objects).
         start: ``start(world, block, tau)``: brings the world to where the block begins for ``tau``; the
             result has the arm's configurations at the block's planned ``start`` and ``goal``.
+        input_names: the names of a block template's input (what :meth:`BatchedTask.input` gives for a
+            tau: the block's move, in the frame that makes it generic).
         refinement: ``refinement(block, shape file)``: the task config (``build()`` makes a
-            :class:`~besman.sim.evaluation.BatchedTask`) whose rollouts refine the block's primitive.
+            :class:`~besman.sim.evaluation.BatchedTask` with ``input(tau)``) whose rollouts refine the
+            block's primitive.
     """
 
     task: str
@@ -39,7 +41,9 @@ class BuildingBlocks:
     names: tuple[str, ...]
     roles: Mapping[str, Mapping[str, str]]
     anchors: tuple[str, str]
-    bounds: Callable[[str], TaskBounds]
-    world: Callable[[], Any]
+    centre: Any
+    draw: Callable[[int, int], Any]
+    world: Callable[[Any], Any]
     start: Callable[[Any, str, Any], Any]
+    input_names: tuple[str, ...]
     refinement: Callable[[str, str], Any]

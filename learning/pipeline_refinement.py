@@ -3,8 +3,9 @@
 tasks (``work/refined/``), and stored as a skill template in the pool.
 
 What is task-specific comes from the task's :class:`~besman.learning.blocks.BuildingBlocks`: the blocks
-and their order, the two anchors of the workspace map, each block's tau box, where it begins, and the
-batched rollouts that refine it.
+and their order, the two anchors of the workspace map, the training tasks, where each block begins, the
+template's input (the block's move in the frame that makes it generic) and the batched rollouts that refine
+it.
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import qmc
 
 import besman.robots as robots
 from besman.learning.blocks import BuildingBlocks
@@ -32,9 +32,11 @@ from besman.learning.policy_search import CMAES, WarmStart, policy_search
 from besman.learning.retargeting import fit_workspace_map, retarget
 from besman.sim.evaluation import BatchedTask
 from besman.sim.executor import Executor
+from besman.sim.manipulation import PlanningError
 from besman.skills import MovementPrimitive, SkillTemplate, SkillTemplatePool
 from besman.skills.seeds import child_seed
 from besman.skills.storage import read_json
+from besman.skills.tasks import TaskBounds
 
 
 def block_shapes(
@@ -57,9 +59,9 @@ def block_shapes(
             segments = [DemonstrationSegment(demos[i["file"]], i["start"], i["end"], block) for i in found]
             imitate(segments, name=block).save(path)
         imitated[block] = MovementPrimitive.load(path)
-    world = blocks.world()
+    world = blocks.world(blocks.centre)
     arm = Executor(world).arm
-    starts = {block: blocks.start(world, block, _centre(blocks, block)) for block in blocks.names}
+    starts = {block: blocks.start(world, block, blocks.centre) for block in blocks.names}
     first, second = blocks.anchors
     mapping = fit_workspace_map(
         imitated[first].dmp.position.goal,
@@ -79,8 +81,9 @@ def block_shapes(
 def refine_blocks(
     shapes: dict[str, Path], blocks: BuildingBlocks, settings: LearnSettings, folder: Path, shown: bool
 ) -> dict[str, list[dict]]:
-    """Each block's K training tasks (a Latin hypercube over its tau box) refined by CMA-ES, each task's
-    result cached in ``folder``; every search seeded by the run's seed, the block's index and the task's."""
+    """Each block refined by CMA-ES in the K training tasks (a Latin hypercube over the task's whole box; a
+    task whose planned motions cannot be made is drawn again), each task's result cached in ``folder``;
+    every search seeded by the run's seed, the block's index and the task's."""
     results = {}
     folder.mkdir(exist_ok=True)
     total = len(blocks.names) * settings.tasks
@@ -88,11 +91,7 @@ def refine_blocks(
     with progress_bar(total, "refining", "task", shown) as tasks_bar:
         tasks_bar.update(done)
         for index, block in enumerate(blocks.names):
-            bounds = blocks.bounds(block)
-            unit = qmc.LatinHypercube(d=len(bounds.names), seed=child_seed(settings.seed, index)).random(
-                settings.tasks
-            )
-            taus = qmc.scale(unit, bounds.low, bounds.high)
+            taus = blocks.draw(settings.tasks, child_seed(settings.seed, index))
             shape = MovementPrimitive.load(shapes[block])
             task = None  # built (a world, its model) only if a training task is left to refine
             results[block] = []
@@ -100,6 +99,7 @@ def refine_blocks(
                 path = folder / f"{block}-{k}.json"
                 if not path.is_file():
                     task = task or blocks.refinement(block, str(shapes[block])).build()
+                    tau = _plannable(task, tau, blocks, child_seed(settings.seed, index, k))
                     with progress_bar(
                         settings.budget + 1, f"{block} {k + 1}/{settings.tasks}", "rollout", shown
                     ) as bar:
@@ -134,12 +134,13 @@ def store_templates(
     for block in blocks.names:
         prototype = MovementPrimitive.load(shapes[block])
         runs = refined[block]
+        inputs = np.array([run["input"] for run in runs])
         template = SkillTemplate(
             block,
             prototype,
-            np.array([run["tau"] for run in runs]),
+            inputs,
             np.array([run["theta"] for run in runs]),
-            blocks.bounds(block),
+            input_box(blocks.input_names, inputs),
             prior_spread=np.where(_forcing_weights(prototype), settings.spread, 0.0),
             seed=settings.seed,
             task=f"{blocks.task}/{robots.describe(blocks.robot).name}",
@@ -151,7 +152,8 @@ def store_templates(
                 "workspace_map": prototype.provenance["retargeting"]["map"],
                 "training": [
                     {
-                        "tau": run["tau"],
+                        "task_tau": run["tau"],
+                        "tau": run["input"],
                         "reward": run["reward"],
                         "start_reward": run["start_reward"],
                         "success": run["outcome"]["success"],
@@ -194,6 +196,7 @@ def _refine_task(
     theta[weights] = result.best_theta
     return {
         "tau": [float(v) for v in tau],
+        "input": [float(v) for v in task.input(tau)],
         "theta": theta.tolist(),
         "reward": result.best_reward,
         "start_reward": result.start_reward,
@@ -212,7 +215,32 @@ def _forcing_weights(shape: MovementPrimitive) -> np.ndarray:
     return mask.ravel()
 
 
-def _centre(blocks: BuildingBlocks, block: str) -> np.ndarray:
-    """The middle of a block's tau box: where its start anchors the workspace map and the retargeting."""
-    bounds = blocks.bounds(block)
-    return (np.asarray(bounds.low) + np.asarray(bounds.high)) / 2
+# Where a template's input box reaches beyond its training inputs: a quarter of their range on each side,
+# at least these (m, m, m, deg: the hand's move), so that near inputs are not extrapolated.
+INPUT_MARGIN = 0.25
+SMALLEST_SPAN = 0.02
+
+
+def input_box(names: tuple[str, ...], inputs: np.ndarray) -> TaskBounds:
+    """A template's input box: its training inputs' range, widened by :data:`INPUT_MARGIN` of it on
+    each side (by half of :data:`SMALLEST_SPAN` at least)."""
+    low, high = inputs.min(axis=0), inputs.max(axis=0)
+    margin = np.maximum(INPUT_MARGIN * (high - low), SMALLEST_SPAN / 2)
+    return TaskBounds(tuple(names), tuple(low - margin), tuple(high + margin))
+
+
+REDRAWS = 20  # training tasks drawn at most in place of one whose planned motions cannot be made
+
+
+def _plannable(task, tau: np.ndarray, blocks: BuildingBlocks, seed: int) -> np.ndarray:
+    """``tau``, or if the block cannot begin there (its planned motions cannot be made) a task drawn in its
+    place with ``seed``."""
+    for attempt in range(REDRAWS + 1):
+        try:
+            task.input(tau)
+            return tau
+        except PlanningError as error:
+            if attempt == REDRAWS:
+                raise LearnError(f"no training task of {blocks.task} could be planned: {error}") from None
+            tau = blocks.draw(1, child_seed(seed, attempt))[0]
+    return tau

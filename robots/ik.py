@@ -202,15 +202,22 @@ def _weights(joint_weights, size: int) -> np.ndarray:
     return weights
 
 
+# rad or m inside each joint's range that solutions keep: motions that imitate them (a straight move's
+# fit through its solutions) then pass no limit where a solution touches one.
+RANGE_INSET = 3e-3
+
+
 @functools.lru_cache(maxsize=64)
 def _joints(robot: Robot, groups: tuple[str, ...]) -> tuple[np.ndarray, ...]:
     """qpos and dof indices and the limits of the groups' joints, in their order (computed once per robot
     and groups: planning solves many IK problems for one arm)."""
     members = [robot.group(name) for name in groups]
-    arrays = tuple(
+    qpos, dofs, lower, upper = (
         np.concatenate([getattr(g, field) for g in members])
         for field in ("qpos_indices", "dof_indices", "lower", "upper")
     )
+    inset = np.minimum(RANGE_INSET, (upper - lower) / 4)
+    arrays = (qpos, dofs, lower + inset, upper - inset)
     for array in arrays:
         array.flags.writeable = False  # shared by every solve
     return arrays

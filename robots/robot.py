@@ -10,26 +10,19 @@ moves, where its tool is and how its gripper works.
 
 from __future__ import annotations
 
-import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from types import MappingProxyType
 
 import mujoco
 import numpy as np
 
 from besman.robots.assembly import build_spec
-from besman.robots.description import DescriptionError, RobotDescription, read_description
+from besman.robots.catalogue import ROBOT, describe
+from besman.robots.description import DescriptionError, RobotDescription
 from besman.robots.gripper import Gripper
 from besman.skills.errors import InputError, UnknownNameError
-from besman.skills.validation import CALLABLE, checked, instance, optional, text
-
-# The check of an argument that names a robot: a shipped robot's name or a robot folder.
-ROBOT = instance((str, os.PathLike), "a robot name or folder (str or os.PathLike)")
-
-ROBOTS_DIR = Path(__file__).resolve().parent
-DESCRIPTION_FILE = "description.json"
+from besman.skills.validation import checked, instance, optional, text
 
 
 def _frozen(values, dtype=float) -> np.ndarray:
@@ -235,11 +228,6 @@ class Robot:
         return set()
 
 
-def available() -> list[str]:
-    """Names of the robots shipped with besman (folders with a ``description.json``)."""
-    return sorted(path.parent.name for path in ROBOTS_DIR.glob(f"*/{DESCRIPTION_FILE}"))
-
-
 @checked(name=ROBOT)
 def load(name: str) -> Robot:
     """Loads a shipped robot by name (see :func:`available`), or a robot folder given as a path.
@@ -251,29 +239,6 @@ def load(name: str) -> Robot:
     """
     description = describe(name)
     return Robot(description, compile_spec(build_spec(description), description))
-
-
-@checked(name=ROBOT)
-def describe(name: str) -> RobotDescription:
-    """The description of a shipped robot (by name) or of a robot folder (a path), read and checked."""
-    folder = Path(name)
-    if not (folder / DESCRIPTION_FILE).exists():  # a special file there is refused by name when read
-        if name not in available():
-            raise UnknownNameError(f"unknown robot {name!r}; available: {', '.join(available())}")
-        folder = ROBOTS_DIR / name
-    return read_description(folder / DESCRIPTION_FILE)
-
-
-@checked(robot=optional(ROBOT), default=ROBOT, fits=CALLABLE)
-def choose(robot: str | None, default: str, fits: Callable[[RobotDescription], bool], what: str) -> str:
-    """``robot`` (None: ``default``) if ``fits`` its description; otherwise an error, before any work, saying
-    that ``what`` (a task, a demo) does not run on it and naming the robots it runs on (an unknown robot is
-    refused with the list of all)."""
-    robot = robot or default
-    if not fits(describe(robot)):
-        fitting = [name for name in available() if fits(describe(name))]
-        raise InputError(f"{what} does not run on {robot!r}; it runs on: {', '.join(fitting)}")
-    return robot
 
 
 @checked(

@@ -1,6 +1,7 @@
 """Simulation: worlds, tasks, batched rollouts and Ruckig-smoothed execution.
 
-- :mod:`besman.sim.world` - robots composed with furniture and objects (MjSpec).
+- :mod:`besman.sim.world` - robots composed with furniture and objects (MjSpec); :mod:`besman.sim.objects`
+  - graspable objects, the families tasks draw them from and their yaw symmetry.
 - :mod:`besman.sim.arm` - the driven joints' limits and kinematic queries (FK, IK, collisions), shared by
   planning and execution.
 - :mod:`besman.sim.executor` - runs :mod:`motions <besman.sim.motions>` cycle by cycle through Ruckig
@@ -15,24 +16,24 @@
   tree panel; :mod:`besman.sim.serving` - who may open it (its own page only, this machine by default).
 """
 
-from besman.sim.arm import Arm
-from besman.sim.evaluation import Evaluation
-from besman.sim.executor import Executor, ExecutorConfig
-from besman.sim.motions import MotionStatus
-from besman.sim.throwing import ThrowingConfig, ThrowingTask
-from besman.sim.world import World, tabletop_world, throwing_world
-from besman.skills.tasks import TaskBounds
+from besman.skills.lazy import lazy_names
 
-__all__ = [
-    "Arm",
-    "Evaluation",
-    "Executor",
-    "ExecutorConfig",
-    "MotionStatus",
-    "TaskBounds",
-    "ThrowingConfig",
-    "ThrowingTask",
-    "World",
-    "tabletop_world",
-    "throwing_world",
-]
+# Where each name lives; imported on first use, so that a light module of the package (its objects) does
+# not bring MuJoCo and the executor with it.
+_HOMES = {
+    "Arm": "arm",
+    "Evaluation": "evaluation",
+    "Executor": "executor",
+    "ExecutorConfig": "executor",
+    "MotionStatus": "motions",
+    "TaskBounds": "besman.skills.tasks",
+    "ThrowingConfig": "throwing",
+    "ThrowingTask": "throwing",
+    "World": "world",
+    "tabletop_world": "world",
+    "throwing_world": "world",
+}
+__all__ = list(_HOMES)
+
+
+__getattr__, __dir__ = lazy_names(__name__, _HOMES)

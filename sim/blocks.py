@@ -6,13 +6,18 @@ the blocks before it and keeps the simulation state; each :func:`rollout` restor
 block's learned primitive moved to the block's planned end points (:func:`~besman.sim.primitives.shaped`),
 then what decides the block's success, in full contact physics:
 
-- ``reach`` (tau: object x, y): from the robot's home to above the box; then descend, close on the box and
-  lift it. Success: the box is held and lifted 5 cm (:func:`~besman.sim.outcomes.lifted`).
-- ``carry`` (tau: object x, y, place x, y): the box in the hand, from above the table to above the place
-  target; then set it down, release and retreat. Success: the task's rule
-  (:func:`~besman.sim.outcomes.placement`).
-- ``return`` (tau: place x, y): from above the placed box back to the home configuration. Success: it
-  arrives.
+- ``reach``: from the robot's home to above the object; then descend, close on it and lift it. Success:
+  the object is held and lifted 5 cm (:func:`~besman.sim.outcomes.lifted`).
+- ``carry``: the object in the hand, from above the table to above the place target; then set it down,
+  release and retreat. Success: the task's rule (:func:`~besman.sim.outcomes.placement`, with the yaw).
+- ``return``: from above the placed object back to the home configuration. Success: it arrives.
+
+A block's template input (:func:`block_input`, named :data:`INPUT_NAMES`) is the hand's move over the block
+in the robot's frame: where its end pose is from its start pose (x, y, z in m) and how far the hand turns
+about the vertical (deg). The planned end points differ with the object's position, yaw, size and shape,
+the place and the task, but a block's shape depends on them only through this move: so a template learned
+in pick and place gives a reach or a carry in any task that moves the hand alike (a stack, a sort, a
+handover), and the same template holds for every object of the family.
 
 A rollout also measures the block's own motion - duration, hand path length, the hand's peak jerk, the
 smallest joint-limit margin and the configurations in collision - and :class:`Reward` scores it.
@@ -38,31 +43,29 @@ from besman.sim.manipulation import (
     PlaceMotions,
     PlanningError,
     Step,
+    Target,
+    hand_yaw,
     plan_pick,
     plan_place,
 )
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
 from besman.sim.outcomes import lifted, placement
 from besman.sim.primitives import shaped
-from besman.sim.world import DEFAULT_BOX, World
+from besman.sim.world import World
 from besman.skills import MovementPrimitive
 from besman.skills.errors import InputError
 
-# Each block's task parameters: the columns of the pick-and-place tau that move its end points.
-BLOCK_PARAMETERS = {
-    "reach": ("object_x", "object_y"),
-    "carry": ("object_x", "object_y", "place_x", "place_y"),
-    "return": ("place_x", "place_y"),
-}
-BLOCKS = tuple(BLOCK_PARAMETERS)
+BLOCKS = ("reach", "carry", "return")
+INPUT_NAMES = ("hand_dx", "hand_dy", "hand_dz", "hand_turn")  # a block template's input: m, m, m, deg
 TIMEOUT = 15.0  # s of simulated time for one motion
 STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 PATH_STRIDE = 5  # control cycles between the hand positions that measure path length and jerk (100 Hz)
 COLLISION_STRIDE = 10  # control cycles between the configurations checked for collisions
+OBJECT = "box"  # the object of pick and place's world, whatever its shape
 
 
 def check_block(block: str) -> None:
-    if block not in BLOCK_PARAMETERS:
+    if block not in BLOCKS:
         raise InputError(f"unknown building block {block!r}; blocks: {', '.join(BLOCKS)}")
 
 
@@ -120,7 +123,7 @@ class BlockStart:
     start: np.ndarray
     goal: np.ndarray
     after: tuple[tuple[Step, PickMotions | PlaceMotions], ...]
-    place_xy: np.ndarray
+    place: np.ndarray  # the target (:meth:`~besman.sim.manipulation.Target.read`)
 
 
 def snapshot(world: World) -> np.ndarray:
@@ -143,11 +146,19 @@ def step_motion(step: Step, planned: PickMotions | PlaceMotions, item: str) -> M
     return GripperMotion(step.name, opening=0.0 if closing else None, expect_grasp=closing, grasp_object=item)
 
 
+def block_input(arm: Arm, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """A block's template input for its move from the configuration ``start`` to ``goal``: the hand's end
+    position less its start position (m) and its turn about the vertical (deg, in [-180, 180))."""
+    begin, end = arm.site_pose(start), arm.site_pose(goal)
+    turn = np.degrees(hand_yaw(arm, goal) - hand_yaw(arm, start))
+    return np.r_[end.position - begin.position, (turn + 180.0) % 360.0 - 180.0]
+
+
 def _run(executor: Executor, steps, planned, what: str) -> None:
     """Runs pick-and-place ``steps`` with their ``planned`` motions; a failure is a planning error (the
     planned motions before a block must work for the block to be tried)."""
     for step in steps:
-        motion = executor.run(step_motion(step, planned, DEFAULT_BOX.name), timeout=TIMEOUT)
+        motion = executor.run(step_motion(step, planned, OBJECT), timeout=TIMEOUT)
         if motion.status is not MotionStatus.SUCCEEDED:
             raise PlanningError(f"the planned {what} failed at {motion.name}: {motion.message}")
 
@@ -164,19 +175,22 @@ def steps_after(block: str, planned: PickMotions | PlaceMotions) -> tuple:
     return tuple((step, planned) for step in steps[index + 1 :])
 
 
-def prepare(world: World, block: str, object_xy, place_xy, plan: PickPlacePlan = DEFAULT_PLAN) -> BlockStart:
-    """Brings ``world`` to where ``block`` begins for the box at ``object_xy`` and its target ``place_xy``,
-    with the planned motions before it (from the robot's home), and plans the block's end points and what
-    follows it. Raises :class:`~besman.sim.manipulation.PlanningError` if that cannot be done."""
+def prepare(world: World, block: str, where, place, plan: PickPlacePlan = DEFAULT_PLAN) -> BlockStart:
+    """Brings ``world`` (with its object :data:`OBJECT`) to where ``block`` begins for the object standing
+    at ``where`` (x, y in m, yaw in deg) and its target ``place`` (the same), with the planned motions
+    before it (from the robot's home), and plans the block's end points and what follows it. Raises
+    :class:`~besman.sim.manipulation.PlanningError` if that cannot be done."""
     check_block(block)
-    object_xy, place_xy = np.asarray(object_xy, dtype=float), np.asarray(place_xy, dtype=float)
-    item = DEFAULT_BOX
+    where, place = np.asarray(where, dtype=float), np.asarray(place, dtype=float)
+    item = world.objects[OBJECT]
     world.reset()
-    world.place_on(item.name, "table", *object_xy)
+    world.place_on(item.name, "table", where[0], where[1], np.radians(where[2]))
     executor = Executor(world)
     home = executor.position.copy()
     settings = executor.reference_settings
-    pick = plan_pick(executor.arm, home, item, object_xy, plan, settings)
+    pick = plan_pick(
+        executor.arm, home, item, where[:2], plan, settings, yaw=np.radians(where[2]), then=place
+    )
     _run(executor, PICK_STEPS[:1], pick, "opening")
 
     def start(goal, after) -> BlockStart:
@@ -186,13 +200,13 @@ def prepare(world: World, block: str, object_xy, place_xy, plan: PickPlacePlan =
             executor.position.copy(),
             goal,
             after,
-            place_xy.copy(),
+            place.copy(),
         )
 
     if block == "reach":  # it replaces the planned reach
         return start(pick.reach.dmp.goal.copy(), steps_after(block, pick))
     _run(executor, PICK_STEPS[1:], pick, "grasp")
-    put = plan_place(executor.arm, pick.lifted, item, place_xy, plan, settings)
+    put = plan_place(executor.arm, pick.lifted, item, place, plan, settings)
     if block == "carry":  # it replaces the planned carry
         return start(put.carry.dmp.goal.copy(), steps_after(block, put))
     _run(executor, PLACE_STEPS, put, "placement")
@@ -204,7 +218,7 @@ def rollout(world: World, start: BlockStart, shape: MovementPrimitive) -> BlockO
     points, then the planned motions after it; measures and judges it (see the module documentation)."""
     restore(world, start.state)
     executor = Executor(world)
-    arm, item = executor.arm, DEFAULT_BOX
+    arm, item = executor.arm, world.objects[OBJECT]
     primitive = shaped(shape, start.block, executor.position, start.goal, arm)
     began = executor.time
     motion = FollowPrimitive(primitive)
@@ -226,24 +240,26 @@ def rollout(world: World, start: BlockStart, shape: MovementPrimitive) -> BlockO
     if motion.status is not MotionStatus.SUCCEEDED:
         return BlockOutcome(False, f"{start.block}: {motion.message}", **measures)
     if start.block == "carry" and not executor.hand.holds(item.name):
-        return BlockOutcome(False, "carry: the box slipped out of the hand", **measures)
+        return BlockOutcome(False, "carry: the object slipped out of the hand", **measures)
     for step, planned in start.after:
         motion = executor.run(step_motion(step, planned, item.name), timeout=TIMEOUT)
         if motion.status is not MotionStatus.SUCCEEDED:
             return BlockOutcome(False, f"{motion.name} after the {start.block}: {motion.message}", **measures)
-    success, message, error = judge_block(world, executor.hand, start.block, start.place_xy)
+    success, message, error = judge_block(world, executor.hand, start.block, start.place)
     return BlockOutcome(success, message, **measures, placement_error=error)
 
 
-def judge_block(world: World, hand, block: str, place_xy) -> tuple[bool, str, float | None]:
-    """Whether ``block`` succeeded, once it and the steps after it ran: the reach, if the box is in
+def judge_block(world: World, hand, block: str, place) -> tuple[bool, str, float | None]:
+    """Whether ``block`` succeeded, once it and the steps after it ran: the reach, if the object is in
     ``hand`` and lifted; the carry, by the place skill's rule (:func:`~besman.sim.outcomes.placement`, the
-    one pick and place's runs are judged by), with the placement error; the return, by arriving. Returns
-    success, a message and the placement error (None but for the carry)."""
-    if block == "reach" and not lifted(world, hand, DEFAULT_BOX.name):
-        return False, "reach: the box was not grasped and lifted", None
+    one pick and place's runs are judged by) against the target ``place``, with the placement
+    error; the return, by arriving. Returns success, a message and the placement error (None but for the
+    carry)."""
+    if block == "reach" and not lifted(world, hand, OBJECT):
+        return False, "reach: the object was not grasped and lifted", None
     if block == "carry":
-        placed = placement(world, DEFAULT_BOX.name, place_xy)
+        target = Target.read(place)
+        placed = placement(world, OBJECT, target.xy, yaw=target.yaw)
         return placed.success, f"carry: {placed.message}", placed.error
     return True, f"{block}: succeeded", None
 

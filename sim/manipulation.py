@@ -18,9 +18,10 @@ from dataclasses import astuple, dataclass, fields
 import numpy as np
 
 from besman.sim.arm import Arm
+from besman.sim.objects import FINGER_CLEARANCE, GraspableObject, yaw_of, yaw_symmetry
 from besman.sim.primitives import point_to_point, shaped, straight_line, top_down
 from besman.sim.references import DEFAULT_SETTINGS, ReferenceSettings, at_rest, joint_reference
-from besman.sim.world import GraspableObject, World
+from besman.sim.world import World
 from besman.skills import MovementPrimitive, Trajectory
 from besman.skills.errors import BesmanError, InputError
 from besman.skills.validation import finite_array
@@ -30,21 +31,58 @@ class PlanningError(BesmanError):
     """No motion satisfies the plan's conditions; the message says which."""
 
 
-# The fingers close across a pair of the box's faces (yaw 0 or 90 deg, up to 15 deg off); the hand's own
-# symmetry makes yaws 180 deg apart the same grasp.
+# Hand yaws where the orientation is free (an object set down at any yaw): across a pair of faces of an
+# axis-aligned box (0 or 90 deg, up to 15 deg off).
 GRASP_YAWS = np.radians([0.0, 15.0, -15.0, -90.0, -75.0, 75.0])
+# Hand yaws relative to the object's: the fingers close squarely across a pair of a box's faces, from
+# either side (a grasp at an angle holds the box by its edges, and it turns in the hand as it is carried);
+# a cylinder's continuum every 30 deg. The hand's own symmetry makes yaws 180 deg apart the same grasp,
+# reached by other joint angles.
+BOX_GRASPS = np.radians([0.0, 90.0, 180.0, 270.0])
+CYLINDER_GRASPS = np.radians(np.arange(0.0, 360.0, 30.0))
 LIFT = 0.06  # m a held object is lifted at least (another hand lets go of it below)
-FINGER_CLEARANCE = 0.005  # m the open fingers keep from the object on each side as they descend around it
+LIFTS = 4  # heights tried for a lift, from carrying height down to LIFT
+CARRY_RAISE = 0.08  # m higher a carry ends above its target where the direct one dips over the shelf
 
 
-def grasp_yaws(item: GraspableObject, arm: Arm) -> np.ndarray:
-    """The yaws of :data:`GRASP_YAWS` at which the arm's open fingers fit around ``item`` (standing
-    axis-aligned): its width along the closing direction plus the clearance on both sides within the
-    aperture (twice the gripper's grasping opening). A cube of 6 cm allows them all; a bar only the yaws
-    across it."""
-    half_x, half_y = item.size[0], item.size[1] if item.shape == "box" else item.size[0]
-    width = 2 * (half_x * np.abs(np.cos(GRASP_YAWS)) + half_y * np.abs(np.sin(GRASP_YAWS)))
-    return GRASP_YAWS[width + 2 * FINGER_CLEARANCE <= 2 * arm.gripper.open]
+def grasp_yaws(item: GraspableObject, arm: Arm, yaw: float = 0.0) -> np.ndarray:
+    """The hand yaws (rad, world) at which the arm's open fingers fit around ``item`` standing at ``yaw``:
+    its width along the closing direction plus :data:`~besman.sim.objects.FINGER_CLEARANCE` on both sides
+    within the aperture (twice the gripper's grasping opening). A 6 cm cube allows every yaw of
+    :data:`BOX_GRASPS`; a bar only those across it; a cylinder those of :data:`CYLINDER_GRASPS`."""
+    if item.shape == "cylinder":
+        relative, width = CYLINDER_GRASPS, np.full(len(CYLINDER_GRASPS), item.narrowest)
+    else:
+        half_x, half_y = item.footprint
+        relative = BOX_GRASPS
+        width = 2 * (half_x * np.abs(np.cos(relative)) + half_y * np.abs(np.sin(relative)))
+    return yaw + relative[width + 2 * FINGER_CLEARANCE <= 2 * arm.gripper.open]
+
+
+def hand_yaw(arm: Arm, configuration: np.ndarray) -> float:
+    """The direction (rad) in which the fingers of a top-down hand close, at ``configuration``."""
+    closing = arm.site_pose(configuration).rotation[:, 1]  # see top_down
+    return float(np.arctan2(closing[1], closing[0]))
+
+
+def place_yaws(item: GraspableObject, place_yaw: float, held: float) -> np.ndarray:
+    """The hand yaws (rad) at which ``item``, held turned by ``held`` from the hand's yaw, stands at
+    ``place_yaw`` once set down: every turn of its symmetry (a cylinder: any hand yaw of
+    :data:`CYLINDER_GRASPS`)."""
+    period = yaw_symmetry(item)
+    if period == 0.0:
+        return CYLINDER_GRASPS
+    return place_yaw - held + period * np.arange(round(2 * np.pi / period))
+
+
+def _can_set_down(arm: Arm, item: GraspableObject, target: Target, held: float, heights) -> bool:
+    """Whether the hand reaches, collision-free, the poses above and at ``target`` (at ``heights``) at one
+    of the yaws that set ``item`` down at the target's yaw, held turned by ``held``."""
+    positions = [np.r_[target.xy, z] for z in heights]
+    return any(
+        _pose_configurations(arm, arm.home, positions, top_down(yaw), (item.name,)) is not None
+        for yaw in place_yaws(item, target.yaw, held)
+    )
 
 
 @dataclass(frozen=True)
@@ -289,6 +327,16 @@ def heights(world: World, item: GraspableObject, plan: PickPlacePlan) -> tuple[f
     return grasp, carry, place
 
 
+def _place_heights(world: World, item: GraspableObject, plan: PickPlacePlan, target) -> tuple[float, float]:
+    """Heights of the grasp point carrying ``item`` over ``target`` and setting it down there: on the
+    world's shelf, or onto the target's top (carried clear of it)."""
+    _, carry_z, place_z = heights(world, item, plan)
+    if target.top is not None:
+        place_z = target.top + plan.release_height + item.half_height + plan.grasp_height
+        carry_z = max(carry_z, place_z - plan.release_height + plan.clearance)
+    return carry_z, place_z
+
+
 def plan_pick(
     arm: Arm,
     start: np.ndarray,
@@ -296,109 +344,228 @@ def plan_pick(
     object_xy,
     plan: PickPlacePlan,
     settings: ReferenceSettings = DEFAULT_SETTINGS,
-    reach: MovementPrimitive | None = None,
+    reach: Learned | None = None,
+    yaw: float = 0.0,
+    then=None,
 ) -> PickMotions:
     """Motions that grasp ``item`` at ``object_xy`` (standing on the table) or ``(x, y, z)`` (its centre
-    at height z, e.g. held by another hand) from the configuration ``start`` and lift it to carrying
-    height (an object in the air at least :data:`LIFT` up). The reach is a point-to-point move,
-    or the joint-space primitive ``reach`` (learned from people) moved to this reach's end points
-    (:func:`~besman.sim.primitives.shaped`)."""
+    at height z, e.g. held by another hand), turned by ``yaw`` (rad), from the configuration ``start`` and
+    lift it to carrying height (an object in the air at least :data:`LIFT` up). Of the grasps that fit
+    (:func:`grasp_yaws`) the one that keeps farthest from the joint limits. The reach is a point-to-point
+    move, or a joint-space primitive learned from people moved to this reach's end points
+    (:func:`~besman.sim.primitives.shaped`): ``reach``, or ``reach(start, end)`` the primitive for them.
+
+    ``then``: the target (:meth:`Target.read`) of the placement the grasp is for. Where the target has a
+    yaw, the grasp is one from which the object can be set down turned to it (a box held across one pair
+    of faces stands at the place's yaw for two hand yaws only, which the wrist may not reach there), if
+    there is such a grasp."""
     where = np.asarray(object_xy, dtype=float)
     object_xy = where[:2]
     grasp_z, carry_z, _ = heights(arm.world, item, plan)
     if len(where) == 3:
         grasp_z = where[2] + plan.grasp_height
         carry_z = max(carry_z, grasp_z + LIFT)
-    leg = plan_leg(
-        arm,
-        start,
-        [
-            np.r_[object_xy, grasp_z + plan.approach_height],
-            np.r_[object_xy, grasp_z],
-            np.r_[object_xy, carry_z],
-        ],
-        ("descend", "lift"),
-        plan.descend_time,
-        allowed=(item.name,),
-        settings=settings,
-        yaws=grasp_yaws(item, arm),
-    )
+    yaws = _grasps_for(arm, item, yaw, then, plan)
+    # Lifted to carrying height, or where the wrist cannot reach that high at the yaw the object needs, as
+    # high as it can, at least LIFT up (the carry then rises over the shelf: the lower it starts, the more
+    # likely it dips).
+    lifts = np.linspace(carry_z, grasp_z + LIFT, LIFTS) if carry_z > grasp_z + LIFT else [carry_z]
+    reaches = {}  # per leg its reach
+
+    def reached_clear(leg: _Leg) -> bool:
+        """The reach to the leg's first configuration, if on the way to an object on the table it touches
+        nothing (the object least of all: the joint-space reach comes to it from the side; one held in the
+        air by another hand is the tree's to keep apart)."""
+        move = _big_move("reach", reach, start, leg.configurations[0], arm)
+        path = joint_reference(arm, move, at_rest(start), settings).positions
+        standing = len(where) == 2
+        if standing and any(arm.collisions(q) for q in path[:: max(1, len(path) // 30)]):
+            return False
+        reaches[id(leg)] = move
+        return True
+
+    for lift in lifts:
+        leg = _first_within_range(
+            plan_leg(
+                arm,
+                start,
+                [np.r_[object_xy, grasp_z + approach], np.r_[object_xy, grasp_z], np.r_[object_xy, lift]],
+                ("descend", "lift"),
+                plan.descend_time,
+                allowed=(item.name,),
+                settings=settings,
+                yaws=yaws,
+                accept=reached_clear,
+            )
+            for approach in _clearances(item, plan)
+        )
+        if leg is not None:
+            break
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down grasp of the object")
-    if reach is None:
-        reach = point_to_point("reach", start, leg.configurations[0], arm)
-    else:
-        reach = shaped(reach, "reach", start, leg.configurations[0], arm)
-    return PickMotions(reach, *leg.primitives, leg.configurations[-1])
+    return PickMotions(reaches[id(leg)], *leg.primitives, leg.configurations[-1])
+
+
+# m the open fingers reach below the grasp point, and the gap they keep above an object's top before they
+# move sideways: the least height above the grasp point of a pose that comes from or goes to the side.
+FINGER_DEPTH = 0.04
+TOP_GAP = 0.01
+
+
+def _clearances(item: GraspableObject, plan: PickPlacePlan) -> tuple[float, ...]:
+    """How high above the grasp point the hand comes from or goes to the side of an object: the plan's
+    approach height, or where the wrist cannot reach that high at the yaw the object needs, just above
+    the object's top."""
+    least = item.half_height - plan.grasp_height + FINGER_DEPTH + TOP_GAP
+    return (plan.approach_height,) if least >= plan.approach_height else (plan.approach_height, least)
+
+
+# How far (a fraction of its range) a straight move's imitation may pass a joint's limit: its knots are
+# inverse-kinematics solutions at the limit, and the execution holds the joint there (a hair's deviation
+# from the line); farther, it would run into the limit at speed.
+OVERSHOOT = 0.0
+
+
+def _first_within_range(legs) -> _Leg | None:
+    """The first of the planned ``legs`` (planned one by one, None where one cannot be) whose moves stay in
+    every joint's range (up to :data:`OVERSHOOT`), else the first planned."""
+    first = None
+    for leg in legs:
+        if leg is not None and leg.clearance >= -OVERSHOOT:
+            return leg
+        first = first or leg
+    return first
+
+
+def _grasps_for(arm: Arm, item: GraspableObject, yaw: float, then, plan: PickPlacePlan) -> np.ndarray:
+    """The grasp yaws of ``item`` standing at ``yaw`` from which it can be set down at the target ``then``
+    (all that fit if none can, or without a target's yaw)."""
+    yaws = grasp_yaws(item, arm, yaw)
+    target = None if then is None else then if isinstance(then, Target) else Target.read(then)
+    if target is None or target.yaw is None or yaw_symmetry(item) == 0.0:
+        return yaws
+    place = _place_heights(arm.world, item, plan, target)
+    fitting = [grasp for grasp in yaws if _can_set_down(arm, item, target, yaw - grasp, place)]
+    return np.array(fitting) if fitting else yaws
+
+
+# A learned big move (reach, carry): a primitive, or a function of the move's start and end configurations
+# that gives one (a skill template's instance for them).
+Learned = MovementPrimitive | Callable[[np.ndarray, np.ndarray], MovementPrimitive]
+
+
+def _big_move(
+    name: str, learned: Learned | None, start, end, arm: Arm, *duration: float
+) -> MovementPrimitive:
+    """The move ``name`` from ``start`` to ``end``: point to point (lasting at least ``duration``), or the
+    ``learned`` primitive moved there."""
+    if learned is None:
+        return point_to_point(name, start, end, arm, *duration)
+    shape = learned(start, end) if callable(learned) else learned
+    return shaped(shape, name, start, end, arm)
+
+
+@dataclass(frozen=True)
+class Target:
+    """Where a placement sets an object down: ``xy`` (m), the ``yaw`` (rad) it should stand at (None: any)
+    and the height ``top`` of what it is set on (None: the shelf)."""
+
+    xy: np.ndarray
+    yaw: float | None = None
+    top: float | None = None
+
+    @classmethod
+    def read(cls, numbers) -> Target:
+        """A target as trees and tasks write it: (x, y) on the shelf, (x, y, yaw in deg), or (x, y, yaw in
+        deg, z) onto a top at height z (another object's: a stack)."""
+        numbers = finite_array("target", numbers, ndim=1)
+        if len(numbers) not in (2, 3, 4):
+            raise InputError(f"a target is x, y[, yaw in deg[, z of a top]], got {numbers.tolist()}")
+        yaw = None if len(numbers) < 3 else float(np.radians(numbers[2]))
+        return cls(numbers[:2].copy(), yaw, None if len(numbers) < 4 else float(numbers[3]))
 
 
 def plan_place(
     arm: Arm,
     start: np.ndarray,
     item: GraspableObject,
-    place_xy,
+    target,
     plan: PickPlacePlan,
     settings: ReferenceSettings = DEFAULT_SETTINGS,
-    carry: MovementPrimitive | None = None,
+    carry: Learned | None = None,
     held=None,
 ) -> PlaceMotions:
-    """Motions that carry ``item`` from the configuration ``start`` (holding it at carrying height) to
-    ``place_xy`` on the shelf, or ``(x, y, z)``: onto a top at height z (another object's: a stack), set it
-    down and retreat. The carry is a point-to-point move, or the joint-space primitive ``carry`` (learned
-    from people) moved to its end points.
+    """Motions that carry ``item`` from the configuration ``start`` (holding it at carrying height) to the
+    ``target`` (:meth:`Target.read`: on the shelf or onto a top, turned to a yaw modulo the object's
+    symmetry or any), set it down and retreat. The carry is a point-to-point move, or a joint-space
+    primitive learned from people moved to its end points (``carry``, or ``carry(start, end)`` the primitive
+    for them, as :func:`plan_pick` takes its reach).
 
     ``held`` (x, y) is where the object's centre is from the hand's grasp point now, for an object held
-    off-centre (a bar taken at one end): the object, not the hand, goes to ``place_xy``, and since the
-    object turns with the hand, any top-down yaw will do (the offset turned with it)."""
-    place_xy = np.asarray(place_xy, dtype=float)
-    _, carry_z, place_z = heights(arm.world, item, plan)
-    if len(place_xy) == 3:  # onto a top of its own height: carried clear of it
-        place_z = place_xy[2] + plan.release_height + item.half_height + plan.grasp_height
-        carry_z = max(carry_z, place_z - plan.release_height + plan.clearance)
-        place_xy = place_xy[:2]
-    shift, yaws = None, grasp_yaws(item, arm)
+    off-centre (a bar taken at one end): the object, not the hand, goes to the target, and since the
+    object turns with the hand, the offset is turned with the hand's yaw."""
+    target = target if isinstance(target, Target) else Target.read(target)
+    place_xy = target.xy
+    carry_z, place_z = _place_heights(arm.world, item, plan, target)
+    if target.yaw is None:
+        yaws = GRASP_YAWS
+    else:
+        turned = yaw_of(arm.world.object_pose(item.name).rotation) - hand_yaw(arm, start)
+        yaws = place_yaws(item, target.yaw, turned)
+    shift = None
     if held is not None:
         held = np.asarray(held, dtype=float)
-        closing = arm.site_pose(start).rotation[:, 1]  # the fingers' closing axis (see top_down)
-        now = np.arctan2(closing[1], closing[0])
+        now = hand_yaw(arm, start)
 
-        def shift(yaw: float) -> np.ndarray:
-            turn = yaw - now
+        def shift(hand: float) -> np.ndarray:
+            turn = hand - now
             rotation = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
             return -(rotation @ held)
 
-        yaws = GRASP_YAWS
     carries, swept = {}, []  # per leg its carry; how low the carries that swept the shelf went
 
+    shelf = arm.world.surface("shelf")
+    reach = float(np.hypot(*item.footprint))  # how far the object reaches from its centre in the plane
+
     def carried_clear(leg: _Leg) -> bool:
-        """The carry to the leg's first configuration, if its hand path stays over the shelf (the joint-space
-        carry cannot run into a joint limit, but it can dip)."""
-        if carry is None:
-            move = point_to_point("carry", start, leg.configurations[0], arm, plan.carry_time)
-        else:
-            move = shaped(carry, "carry", start, leg.configurations[0], arm)
+        """The carry to the leg's first configuration, if the object stays clear above the shelf wherever
+        it is over it (the joint-space carry cannot run into a joint limit, but it can dip)."""
+        move = _big_move("carry", carry, start, leg.configurations[0], arm, plan.carry_time)
         reference = joint_reference(arm, move, at_rest(start), settings)
-        lowest = float(site_path(arm, reference, 40)[:, 2].min())
-        if lowest - item.half_height - plan.grasp_height < arm.world.surface("shelf").height + 0.01:
+        path = site_path(arm, reference, 40)
+        over = [shelf.contains(x, y, -reach) for x, y in path[:, :2]]
+        lowest = float(path[over, 2].min()) if any(over) else np.inf
+        if lowest - item.half_height - plan.grasp_height < shelf.height + 0.01:
             swept.append(lowest)
             return False
         carries[id(leg)] = move
         return True
 
-    leg = plan_leg(
-        arm,
-        start,
-        [np.r_[place_xy, carry_z], np.r_[place_xy, place_z], np.r_[place_xy, place_z + plan.approach_height]],
-        ("place", "retreat"),
-        plan.descend_time,
-        allowed=(item.name,),
-        settings=settings,
-        yaws=yaws,
-        shift=shift,
-        accept=carried_clear,
-    )
+    # Carried to above the target, or where that carry dips over the shelf's edge, to higher above it (a
+    # joint-space carry from a low lift climbs more steeply to a higher end).
+    for above in (carry_z, carry_z + CARRY_RAISE):
+        leg = _first_within_range(
+            plan_leg(
+                arm,
+                start,
+                [np.r_[place_xy, above], np.r_[place_xy, place_z], np.r_[place_xy, place_z + retreat]],
+                ("place", "retreat"),
+                plan.descend_time,
+                allowed=(item.name,),
+                settings=settings,
+                yaws=yaws,
+                shift=shift,
+                accept=carried_clear,
+            )
+            for retreat in _clearances(item, plan)
+        )
+        if leg is not None or not swept:
+            break
     if leg is None and swept:
-        raise PlanningError(f"the carry would sweep the box {min(swept):.3f} m low over the shelf")
+        raise PlanningError(
+            f"the carry would sweep the object over the shelf with the hand down at z = {min(swept):.3f} m "
+            f"(the shelf's top is at {shelf.height:.3f} m)"
+        )
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down placement at the target")
     return PlaceMotions(carries[id(leg)], *leg.primitives)

@@ -14,10 +14,12 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from besman.sim.objects import yaw_error, yaw_of
 from besman.sim.world import World
 
 SETTLE_TIME = 0.3  # s a released box is left to settle before it is judged
 PLACE_TOLERANCE = 0.02  # m from the target, in the plane
+YAW_TOLERANCE = 5.0  # deg from the wanted yaw, modulo the object's symmetry
 TILT_LIMIT = 10.0  # deg from upright
 LIFT_HEIGHT = 0.05  # m above where it stood that a picked box must be
 
@@ -25,10 +27,12 @@ LIFT_HEIGHT = 0.05  # m above where it stood that a picked box must be
 @dataclass(frozen=True)
 class Placement:
     """Where a released box came to rest: success (upright on the shelf within :data:`PLACE_TOLERANCE` of
-    the target), horizontal error (m), tilt, position and a message."""
+    the target and, where a yaw is wanted, within :data:`YAW_TOLERANCE` of it), horizontal error (m), yaw
+    error (deg, modulo the object's symmetry; None where no yaw is wanted), tilt, position and a message."""
 
     success: bool
     error: float
+    yaw_error_degrees: float | None
     tilt_degrees: float
     position: tuple[float, float, float]
     message: str
@@ -42,24 +46,36 @@ def settle(world: World, observe: Callable[[], None] | None = None) -> None:
             observe()
 
 
-def placement(world: World, name: str, place_xy, observe: Callable[[], None] | None = None) -> Placement:
-    """Lets the released box ``name`` settle, then judges where it stands against the target ``place_xy``."""
+def placement(
+    world: World,
+    name: str,
+    place_xy,
+    observe: Callable[[], None] | None = None,
+    yaw: float | None = None,
+) -> Placement:
+    """Lets the released box ``name`` settle, then judges where it stands against the target ``place_xy``
+    and the wanted ``yaw`` (rad; None: any)."""
     settle(world, observe)
     pose = world.object_pose(name)
     item = world.objects[name]
-    error = float(np.linalg.norm(pose.position[:2] - np.asarray(place_xy, dtype=float)))
+    error = float(np.linalg.norm(pose.position[:2] - np.asarray(place_xy, dtype=float)[:2]))
+    turned = None if yaw is None else math.degrees(yaw_error(yaw_of(pose.rotation), yaw, item))
     tilt = math.degrees(math.acos(min(1.0, abs(pose.rotation[2, 2]))))
     on_shelf = abs(pose.position[2] - (world.surface("shelf").height + item.half_height)) < 0.01
-    success = bool(error <= PLACE_TOLERANCE and tilt < TILT_LIMIT and on_shelf)
+    aligned = turned is None or turned <= YAW_TOLERANCE
+    success = bool(error <= PLACE_TOLERANCE and aligned and tilt < TILT_LIMIT and on_shelf)
     message = (
         "placed"
         if success
         else (
-            f"placed {error * 100:.1f} cm from the target, tilted {tilt:.1f} deg"
+            f"placed {error * 100:.1f} cm from the target"
+            + ("" if turned is None else f", turned {turned:.1f} deg from its yaw")
+            + f", tilted {tilt:.1f} deg"
             + ("" if on_shelf else ", off the shelf")
         )
     )
-    return Placement(success, error, tilt, tuple(round(float(v), 4) for v in pose.position), message)
+    position = tuple(round(float(v), 4) for v in pose.position)
+    return Placement(success, error, turned, tilt, position, message)
 
 
 def lifted(world: World, hand, name: str, tolerance: float = 0.005) -> bool:

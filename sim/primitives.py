@@ -80,6 +80,28 @@ def straight_line(
     return _joint_primitive(dmp, name, arm)
 
 
+def on_arm(shape: MovementPrimitive, arm: Arm) -> MovementPrimitive:
+    """``shape`` for the joints ``arm`` drives: itself, or where it drives more joints (learned on a waist
+    and an arm, run by the arm alone while the waist is held for the other arm) its dimensions of the
+    arm's joints. The arm's joints follow the learned deviation as before; the left-out joints' share of
+    the movement is the planner's end points' concern."""
+    if shape.space != "joint" or shape.group is None or shape.group == arm.name:
+        return shape
+    robot = arm.world.robot
+    joints = [joint for name in shape.group.split("+") for joint in robot.group(name).joints]
+    if shape.dmp.n_dims != len(joints) or not set(arm.joints) <= set(joints):
+        return shape  # not a superset of the arm's joints: shaped() says what it needs
+    index = [joints.index(joint) for joint in arm.joints]
+    primitive = copy.deepcopy(shape)
+    dmp = primitive.dmp
+    dmp.n_dims = len(index)
+    for vector in ("scale", "start", "start_velocity", "start_acceleration", "goal", "goal_velocity"):
+        setattr(dmp, vector, getattr(dmp, vector)[index].copy())
+    dmp.weights = dmp.weights[index].copy()
+    primitive.group = arm.name
+    return primitive
+
+
 def shaped(
     shape: MovementPrimitive, name: str, start: np.ndarray, goal: np.ndarray, arm: Arm
 ) -> MovementPrimitive:
@@ -90,6 +112,7 @@ def shaped(
     except where it would take a joint out of its range (an end point at a limit, say): that joint keeps
     the largest share of its deviation that stays inside (the response is linear in its weights, so the
     share is exact)."""
+    shape = on_arm(shape, arm)
     if shape.space != "joint" or shape.dmp.n_dims != arm.dofs:
         raise InputError(
             f"primitive {shape.name!r} must be a joint-space primitive of {arm.dofs} joints "
@@ -99,6 +122,16 @@ def shaped(
     primitive.name = name
     dmp = primitive.dmp
     dmp.configure(start=start, start_velocity=0.0, start_acceleration=0.0, goal=goal, goal_velocity=0.0)
+    _keep_in_range(dmp, arm)
+    return primitive
+
+
+def _keep_in_range(dmp: DMP, arm: Arm) -> None:
+    """Scales each joint's forcing weights of ``dmp`` (configured between its end points, at rest at both)
+    down to the largest share of its deviation from the direct path that keeps the joint
+    :data:`LIMIT_MARGIN` inside its range (the response is linear in its weights, so the share is
+    exact)."""
+    start, goal = dmp.start, dmp.goal
     direct = DMP(arm.dofs, execution_time=dmp.execution_time, dt=dmp.dt, start=start, goal=goal)
     path = direct.trajectory().positions
     response = dmp.trajectory().positions - path
@@ -111,7 +144,6 @@ def shaped(
             share = (room[moving, joint] / response[moving, joint]).min()
             shares[joint] = min(1.0, max(0.0, share))
     dmp.weights = dmp.weights * shares[:, None]
-    return primitive
 
 
 def cartesian_point_to_point(

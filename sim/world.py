@@ -22,36 +22,11 @@ import numpy as np
 
 import besman.robots as robots
 from besman.robots import Pose, Robot, RobotDescription
+from besman.robots.catalogue import ROBOT
 from besman.robots.description import Board, TabletopLayout
-from besman.robots.robot import ROBOT
+from besman.sim.objects import GraspableObject
 from besman.skills.errors import InputError, UnknownNameError
 from besman.skills.validation import checked, instance, items, number, text
-
-
-@dataclass(frozen=True)
-class GraspableObject:
-    """A free rigid object.
-
-    Attributes:
-        name: body name (its geom and free joint are called the same).
-        shape: "box" or "cylinder".
-        size: MuJoCo geom size (box: half extents; cylinder: radius, half height) in m.
-        mass: kg.
-        friction: sliding, torsional, rolling friction coefficients.
-        rgba: colour.
-    """
-
-    name: str
-    shape: str = "box"
-    size: tuple[float, ...] = (0.03, 0.03, 0.03)
-    mass: float = 0.2
-    friction: tuple[float, float, float] = (0.8, 0.01, 0.0001)
-    rgba: tuple[float, float, float, float] = (0.85, 0.45, 0.15, 1.0)
-
-    @property
-    def half_height(self) -> float:
-        return self.size[2] if self.shape == "box" else self.size[1]
-
 
 DEFAULT_BOX = GraspableObject("box")
 

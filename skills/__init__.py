@@ -19,7 +19,7 @@
 Imports numpy, scipy and scikit-learn and no other besman package, so every other besman package may use it.
 """
 
-import importlib
+from besman.skills.lazy import lazy_names
 
 # Each name and the module it comes from, imported when first used: the command line imports
 # ``besman.skills.errors`` and must not pay for scipy and scikit-learn to print its help.
@@ -44,13 +44,4 @@ _EXPORTS = {
 __all__ = sorted(_EXPORTS)
 
 
-def __getattr__(name: str):
-    if name not in _EXPORTS:
-        raise AttributeError(f"module 'besman.skills' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"besman.skills.{_EXPORTS[name]}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+__getattr__, __dir__ = lazy_names(__name__, _EXPORTS)

@@ -34,18 +34,38 @@ Observer = Callable[[Any, dict], None]  # (runner, tick record) -> None, after e
 
 @dataclass(frozen=True)
 class TaskValue:
-    """A named part of tau: ``names`` of its numbers (tau's columns), their ``unit`` and what it is.
-    ``whole``: its numbers are whole (an index; drawn as whole numbers, given as such). ``surface``: it is
-    an x, y point on the world's surface of that name (the viewer's session drags it there); ``target``:
-    it is where the task wants something (the viewer marks it)."""
+    """A named part of tau: ``names`` of its numbers (tau's columns), their ``unit`` (one for all, or one
+    each) and what it is. ``whole``: its numbers are whole (an index; drawn as whole numbers, given as
+    such); ``choices``: a whole value's meanings, by index (given by name or index: ``--set shape=cylinder``).
+    ``surface``: it begins with an x, y point on the world's surface of that name (the viewer's session
+    drags it there); ``target``: it is where the task wants something (the viewer marks it)."""
 
     name: str
     names: tuple[str, ...]
-    unit: str
+    unit: str | tuple[str, ...]
     meaning: str
     whole: bool = False
+    choices: tuple[str, ...] = ()
     surface: str | None = None
     target: bool = False
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        """The unit of each number."""
+        return (self.unit,) * len(self.names) if isinstance(self.unit, str) else self.unit
+
+    def numbers(self, given) -> np.ndarray:
+        """``given`` (numbers, or a choice's name) as this value's numbers; an error names the value and
+        what it takes."""
+        if isinstance(given, str) or (np.ndim(given) == 1 and any(isinstance(v, str) for v in given)):
+            words = [given] if isinstance(given, str) else list(given)
+            if not self.choices:
+                raise InputError(f"--set {self.name}: takes numbers ({', '.join(self.names)}), got {given!r}")
+            unknown = [word for word in words if str(word) not in self.choices]
+            if unknown:
+                raise InputError(f"--set {self.name}: {unknown[0]!r} is not one of {', '.join(self.choices)}")
+            return np.array([self.choices.index(str(word)) for word in words], dtype=float)
+        return np.asarray(given, dtype=float).ravel()
 
 
 @dataclass
@@ -175,8 +195,8 @@ class Task:
         else:
             values = self.split(self.draw(robot, np.random.default_rng(seed)))
         for name, numbers in given.items():
-            numbers = np.asarray(numbers, dtype=float).ravel()
             value = by_name[name]
+            numbers = value.numbers(numbers)
             if len(numbers) != len(value.names):
                 raise InputError(
                     f"--set {name} needs {len(value.names)} number(s) ({', '.join(value.names)}), got "
@@ -197,6 +217,34 @@ class Task:
         tau[whole] = rng.integers(low[whole], high[whole] + 1)
         return tau
 
+    def spread(self, robot: str, count: int, seed: int) -> np.ndarray:
+        """``count`` taus spread over the robot's box (a Latin hypercube: each column's range cut in
+        ``count`` strata, one tau in each; whole values take the strata's whole numbers in turn)."""
+        from scipy.stats import qmc
+
+        bounds = self.bounds(robot)
+        low, high = np.asarray(bounds.low), np.asarray(bounds.high)
+        unit = qmc.LatinHypercube(d=len(low), seed=seed).random(count)
+        taus = low + unit * (high - low)
+        whole = self._whole_columns()
+        taus[:, whole] = np.minimum(
+            low[whole] + np.floor(unit[:, whole] * (high - low + 1)[whole]), high[whole]
+        )
+        return taus
+
+    def _columns(self, robot: str) -> list[dict]:
+        """tau's columns on ``robot``: each one's name, value, unit and range (and a choice's names)."""
+        bounds, columns = self.bounds(robot), []
+        for value in self.values:
+            for name, unit in zip(value.names, value.units, strict=True):
+                index = bounds.names.index(name)
+                column = {"name": name, "value": value.name, "unit": unit}
+                column["range"] = [bounds.low[index], bounds.high[index]]
+                if value.choices:
+                    column["choices"] = list(value.choices)
+                columns.append(column)
+        return columns
+
     def _whole_columns(self) -> np.ndarray:
         return np.array([value.whole for value in self.values for _ in value.names], dtype=bool)
 
@@ -214,9 +262,14 @@ class Task:
             "success": self.success,
             "tree": self.tree,
             "values": {
-                value.name: {"names": list(value.names), "unit": value.unit, "meaning": value.meaning}
+                value.name: {
+                    "names": list(value.names),
+                    "units": list(value.units),
+                    "meaning": value.meaning,
+                    **({"choices": list(value.choices)} if value.choices else {}),
+                }
                 for value in self.values
             },
-            "bounds": self.bounds(robot).as_dict(),
+            "tau": self._columns(robot),
             **self.facts(robot),
         }

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import py_trees
 
-from besman.robots.robot import ROBOT
+from besman.robots.catalogue import ROBOT
 from besman.skills.errors import InputError
 from besman.skills.validation import CALLABLE, PATH, SEED, checked, instance, optional, positive, text
 from besman.tasks import task as find_task

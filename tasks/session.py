@@ -1,18 +1,20 @@
 """An interactive run in the browser: Run, Pause, Step, Reset and speed; a breakpoint; gizmos for the task.
 
 A :class:`Session` holds a tree, the task it runs on (:mod:`besman.tasks`) and the task's values (pick and
-place's ``object``: where the box stands, ``place``: where it goes). Its runs go in a background thread,
-driven by the viewer's controls:
+place's ``object``: where the object stands and its yaw, ``place``: where it goes, ``shape`` and ``size``).
+Its runs go in a background thread, driven by the viewer's controls:
 
 - **Run** starts a run (a new one after the last has ended, or when a gizmo moved since this one was set up)
   or resumes a paused one; **Pause** stops after the current tick; **Step** runs one tick and pauses;
   **Reset** abandons the run and sets up a new one with the current task values; **speed** is the pace (x
   real time).
 - **Breakpoint**: a node chosen in the list pauses the run at the first tick that visits it (once per run).
-- A draggable gizmo marks each task value that is a point on a surface (:attr:`TaskValue.surface
+- A draggable gizmo marks each task value that begins with a point on a surface (:attr:`TaskValue.surface
   <besman.tasks.base.TaskValue.surface>`: pick and place's object and place target); it moves within the
-  task's bounds, letting go of one sets that task value, and the next run uses it (a tree that instantiates
-  templates instantiates them for the new tau: it reads the task values when it runs).
+  task's bounds, letting go of one sets that value's x and y (its other numbers, a yaw, stay), and the next
+  run uses it (a tree that instantiates templates instantiates them for the new tau: it reads the task
+  values when it runs). :meth:`Session.set_value` sets any task value; a run whose values change the world's
+  objects (a shape, a size) shows them as they are: the viewer's scene is rebuilt with them.
 - Overlays (:mod:`besman.sim.overlays`): the task's target (its value marked ``target``) as a ring, the
   motions' planned and executed hand paths, target frames, the objects' poses, a template's spread.
 
@@ -25,9 +27,11 @@ while the session is paused, so the simulation stands exactly where the tree sto
 
 from __future__ import annotations
 
+import copy
 import os
 import threading
 
+import numpy as np
 from py_trees.common import Status
 
 from besman.sim.viewer import Viewer, within
@@ -39,6 +43,12 @@ from besman.trees.runner import Runner, RunResult
 from besman.trees.watching import Watch
 
 NO_BREAKPOINT = "(none)"
+# What the viewer draws of a model (meshes; inertia boxes): a run whose model differs in these (an object's
+# shape or size) has the viewer's scene rebuilt.
+GEOMETRY = (
+    *("geom_type", "geom_size", "geom_pos", "geom_quat", "geom_rgba", "geom_rbound", "geom_aabb"),
+    *("body_mass", "body_inertia", "body_ipos", "body_iquat"),
+)
 
 
 class _Abandoned(KeyboardInterrupt):
@@ -88,7 +98,8 @@ class Session:
         prepared = self._prepare(values or {})  # the task values not given: drawn, or the task's defaults
         self.values = {name: tuple(value) for name, value in prepared.runner.run_info["values"].items()}
         self.runner = self._new_runner(prepared)
-        self.viewer = Viewer(self.runner.executor.world.model, **(viewer_options or {}))
+        # a copy: the viewer's model takes the geometry of later runs' worlds (_show_objects)
+        self.viewer = Viewer(copy.copy(self.runner.executor.world.model), **(viewer_options or {}))
         self.overlays = self.viewer.overlays_for(self.runner.executor.arm)
         gui = self.viewer.server.gui
         with gui.add_folder("Run"):
@@ -161,17 +172,27 @@ class Session:
         with self._lock:
             return self._thread is not None and self._thread.is_alive() and not self._running
 
-    def set_value(self, name: str, xy) -> None:
-        """Sets the task value ``name`` (a point on a surface, e.g. "object" or "place") for the next run;
-        refused outside the bounds."""
-        if name not in self.surfaces:
-            raise InputError(f"{name!r} is not a task value to drag; these are: {', '.join(self.surfaces)}")
-        x, y = (float(v) for v in xy)
-        self.bounds.check(self.task.join({**self.values, name: (x, y)}))  # refused by name outside the box
-        self.values[name] = (x, y)
-        self.gizmos[name].position = (x, y, self.gizmos[name].position[2])
+    def set_value(self, name: str, numbers) -> None:
+        """Sets the task value ``name`` for the next run: its numbers, a choice's name (``"cylinder"``), or
+        for a value on a surface (e.g. "object" or "place") x and y alone, which keep its other numbers (the
+        yaw). Refused, by name, as the run would refuse it (outside the bounds, an object the gripper cannot
+        hold)."""
+        by_name = {value.name: value for value in self.task.values}
+        if name not in by_name:
+            raise InputError(
+                f"{name!r} is not a value of task {self.task.name}; its values: {', '.join(by_name)}"
+            )
+        numbers = by_name[name].numbers(numbers)
+        if name in self.surfaces and len(numbers) == 2:
+            numbers = np.concatenate([numbers, self.values[name][2:]])
+        given = {key: value for key, value in self.values.items() if key in by_name}
+        resolved = self.task.resolve(self.robot, {**given, name: numbers}, self.seed)
+        self.values.update({key: tuple(float(v) for v in value) for key, value in resolved.items()})
+        if name in self.gizmos:
+            self.gizmos[name].position = (*self.values[name][:2], self.gizmos[name].position[2])
         self._show_target()
-        self.state.content = f"{name} set to ({x:.3f}, {y:.3f}); Reset or Run uses it"
+        shown = ", ".join(f"{v:.3f}" for v in self.values[name])
+        self.state.content = f"{name} set to ({shown}); Reset or Run uses it"
 
     def judge(self, result: RunResult):
         """The summary of the current run that ended with ``result`` (the task's judgement)."""
@@ -239,25 +260,37 @@ class Session:
                 raise _Abandoned
 
     def _show_initial(self) -> None:
-        data = self.runner.executor.world.data
-        self.viewer.show(data, force=True)
-        self.overlays.update(data)
+        world = self.runner.executor.world
+        self._show_objects(world.model)
+        self.viewer.show(world.data, force=True)
+        self.overlays.update(world.data)
         for name, handle in self.gizmos.items():
-            handle.position = (*self.values[name], handle.position[2])
+            handle.position = (*self.values[name][:2], handle.position[2])
         self._show_target()
+
+    def _show_objects(self, model) -> None:
+        """The viewer's scene rebuilt with ``model``'s geometry where the run's values changed it (the
+        object's shape or size); every run of a task on a robot has the same bodies and geoms."""
+        shown = self.viewer.scene.mj_model
+        changed = [key for key in GEOMETRY if not np.array_equal(getattr(shown, key), getattr(model, key))]
+        if not changed:
+            return
+        for key in changed:
+            getattr(shown, key)[:] = getattr(model, key)
+        self.viewer.scene.rebuild_visual_handles()
 
     def _show_target(self) -> None:
         """The task's target (its value marked ``target``) as a ring on its surface."""
         for value in self.task.values:
             if value.target and value.name in self.surfaces:
-                self.overlays.show_place((*self.values[value.name], self.surfaces[value.name]))
+                self.overlays.show_place((*self.values[value.name][:2], self.surfaces[value.name]))
 
     def _gizmo(self, name: str, height: float):
-        """A gizmo that moves in x and y within the task's bounds for ``name``; letting go sets the value."""
-        columns = self.bounds.columns(next(v.names for v in self.task.values if v.name == name))
+        """A gizmo that moves in x and y within the task's bounds for ``name``; letting go sets x and y."""
+        columns = self.bounds.columns(next(v.names[:2] for v in self.task.values if v.name == name))
         return self.viewer.planar_gizmo(
             f"/task/{name}",
-            (*self.values[name], height),
+            (*self.values[name][:2], height),
             columns.low,
             columns.high,
             scale=0.15,

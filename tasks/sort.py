@@ -1,5 +1,6 @@
 """Sort: the robot puts three boxes (red, green, blue) from the table on the shelf, each in its own place,
-one after the other with its first arm (default tree ``sort.yaml``: one subtree in a loop over the
+one after the other with its first arm (default tree ``sort.yaml``; ``sort_learned.yaml`` moves the arm with
+the pick-and-place pool's templates: one subtree in a loop over the
 blackboard's list ``/task/objects``). During one box's carry a person takes it out of the hand and sets it
 down elsewhere on the table (:class:`~besman.sim.disturbances.TakeFromHand`); nothing tells the robot, and
 the tree grasps the box again where it now lies.
@@ -26,9 +27,10 @@ import numpy as np
 from besman.skills.errors import InputError
 from besman.skills.tasks import TaskBounds
 from besman.tasks.base import Scene, Task, TaskValue
-from besman.tasks.pick_place import areas, one_hand_tabletop
+from besman.tasks.pick_place import areas, family, one_hand_tabletop
 
 BOXES = {"red": (0.80, 0.15, 0.12, 1.0), "green": (0.20, 0.62, 0.25, 1.0), "blue": (0.15, 0.35, 0.80, 1.0)}
+SIDE = 0.06  # m: the boxes are cubes this size, or as wide as the robot's gripper holds (if less)
 # Each box's own place on the shelf, from the middle of the place area, 14-15 cm apart (the open hand spans
 # 9 cm, plus the fingers). The carried box clears the shelf by 6 cm, as high as a box that stands there, so
 # the far place is filled first and no carry passes over a placed box. (On AILA: blue (0.52, -0.50), red
@@ -127,7 +129,9 @@ class Sort(Task):
         bounds = self.bounds(robot)
         set_down = free_spots(rng, bounds.low[:2], bounds.high[:2], 1, waiting)[0]
         slip = TakeFromHand(slipping, tuple(set_down.tolist()), after=float(rng.uniform(*SLIP_AFTER)))
-        world = tabletop_world(tuple(GraspableObject(name, rgba=rgba) for name, rgba in BOXES.items()), robot)
+        half = min(SIDE, family(robot).width[1]) / 2  # cubes the robot's gripper holds
+        boxes = tuple(GraspableObject(name, size=(half,) * 3, rgba=rgba) for name, rgba in BOXES.items())
+        world = tabletop_world(boxes, robot)
         for name, (x, y) in spots.items():
             world.place_on(name, "table", x, y)
         items = [{"object": name, "target": list(targets[name])} for name in order]

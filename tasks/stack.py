@@ -1,6 +1,7 @@
 """Stack: the robot stacks three boxes (red, green, blue) on a spot on the table, in the order tau gives,
 with its first arm (default tree ``stack.yaml``: one subtree in a loop over the blackboard's list
-``/task/objects``, each item a box and where it goes: x, y and the height of the top it is set down on).
+``/task/objects``, each item a box and where it goes: x, y, yaw 0 and the height of the top it is set down
+on).
 
 - **Randomised**: tau = ``spot`` (x, y of the stack on the table, m, in the robot's spot area,
   :data:`LAYOUTS`) and ``order`` (which box goes where, bottom to top: one of the six orders of
@@ -101,7 +102,7 @@ class Stack(Task):
         order = ORDERS[int(values["order"][0])]
         table, height = world.surface("table").height, 2 * world.objects["red"].half_height
         items = [
-            {"object": name, "target": [*spot.tolist(), round(table + level * (height + GAP), 4)]}
+            {"object": name, "target": [*spot.tolist(), 0.0, round(table + level * (height + GAP), 4)]}
             for level, name in enumerate(order)
         ]
         settings = {

@@ -134,17 +134,17 @@ def test_segmentation_benchmark_compares_every_method_as_json(shared_recordings,
 
 @pytest.mark.slow
 def test_learned_benchmark_compares_the_three_trees_as_json():
-    # One task (docs/learning.md's 30: the full run): every tree, measure and target is computed as there.
+    # One task (docs/learning.md's 100: the full run): every tree, measure and target is computed as there.
     report = run_benchmark("learned.py", "--count", "1")
     assert report["benchmark"] == "learned" and report["count"] == 1 and report["robot"] == "aila"
-    assert set(report["trees"]) == {"ik", "zero-shot", "refined"}
+    assert set(report["trees"]) == {"ik", "zero-shot", "promp"}
     for name, row in report["trees"].items():
         assert 0.0 <= row["success_rate"] <= 1.0
         assert row["mean_episode_s"] > 0 and row["mean_path_length_m"] > 0
         placed = row["mean_path_length_to_placement_m"]
         assert 0 < placed <= row["mean_path_length_m"]  # the learned tree's return home comes after
         assert (placed == row["mean_path_length_m"]) == (name == "ik")
-        assert row["met"] is None if name == "ik" else row["met"] in (True, False)
+        assert row["met"] is None if name == "promp" else row["met"] in (True, False)
 
 
 def test_startup_benchmark_times_every_help_beside_a_bare_python():

@@ -125,9 +125,16 @@ def test_a_broken_throw_never_scores_better_than_a_failing_one():
 @pytest.mark.parametrize(
     ("sets", "message"),
     [
-        (("objet=0.55,-0.1",), "--set objet: not a value of task pick-place; its values: object, place"),
-        (("place=0.5,-0.4", "place=0.6,-0.4"), "--set place: given twice"),
-        (("object=nan,0.1",), "--set 'object=nan,0.1': the values must be finite numbers"),
+        (
+            ("objet=0.55,-0.1,0",),
+            "--set objet: not a value of task pick-place; its values: object, place, shape, size",
+        ),
+        (("place=0.5,-0.4,0", "place=0.6,-0.4,0"), "--set place: given twice"),
+        (("object=nan,0.1,0",), "--set 'object=nan,0.1,0': the values must be finite numbers"),
+        (("object=0.5,-0.1,inf",), "--set 'object=0.5,-0.1,inf': the values must be finite numbers"),
+        (("shape=sphere",), "--set shape: 'sphere' is not one of box, cylinder"),
+        (("object=near",), "--set object: takes numbers (object_x, object_y, object_yaw), got 'near'"),
+        (("shap=cylinder",), "--set shap=cylinder: the values must be numbers separated by commas"),
     ],
 )
 def test_set_typos_repeats_and_non_finite_values_are_refused(capsys, sets, message):
@@ -340,7 +347,7 @@ def test_damaged_recordings_are_refused_naming_file_row_and_column(
         ),
         (
             "ObjectAt: {name: o, object: box, position: [0.5]}",
-            "root.ObjectAt.position: needs 2 or 3 numbers, got 1",
+            "root.ObjectAt.position: needs 2 or 3 or 4 numbers, got 1",
         ),
         (
             "ObjectAt: {name: o, object: box, tolerance: -0.1}",
@@ -490,7 +497,7 @@ def _wrong_names():
     from besman.sim.executor import Executor
     from besman.sim.world import tabletop_world
     from besman.skills import SkillTemplatePool
-    from besman.tasks.pick_place.blocks import block_bounds
+    from besman.tasks.pick_place.blocks import start as block_start
     from besman.tasks.running import run_demo
     from besman.trees.reference import node_reference
 
@@ -498,6 +505,7 @@ def _wrong_names():
     robot, executor = world.robot, Executor(world)
     pool = SkillTemplatePool(Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place_aila")
     recording = load_recording()
+    values = task("pick-place").default_values("aila")
     return {
         "robots.load": lambda: robots.load("nosuch"),
         "robots.describe": lambda: robots.describe("nosuch"),
@@ -513,7 +521,7 @@ def _wrong_names():
         "SkillTemplatePool[]": lambda: pool["nosuch"],
         "SkillTemplatePool.remove": lambda: pool.remove("nosuch"),
         "task": lambda: task("nosuch"),
-        "block_bounds": lambda: block_bounds("nosuch"),
+        "pick_place.blocks.start": lambda: block_start(world, "nosuch", task("pick-place").join(values)),
         "check_block": lambda: check_block("nosuch"),
         "run_demo": lambda: run_demo("nosuch"),
         "run task value": lambda: run("pick-place", values={"nosuch": (0.5, 0.0)}),

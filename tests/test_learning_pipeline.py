@@ -44,13 +44,12 @@ from besman.learning.pipeline import LearnError, LearnSettings, learn
 from besman.learning.pipeline_labels import longest_run
 from besman.learning.retargeting import WorkspaceMap, fit_workspace_map, retarget
 from besman.sim import Executor, tabletop_world
-from besman.sim.blocks import Reward, rollout
+from besman.sim.blocks import INPUT_NAMES, Reward, block_input, rollout
 from besman.sim.primitives import point_to_point, shaped
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, SkillTemplatePool
 from besman.skills.writer_lock import WriterLock
 from besman.tasks import task
 from besman.tasks.pick_place.blocks import BlockTask, BlockTaskConfig
-from besman.tasks.pick_place.blocks import start as block_start
 from besman.tasks.running import prepare
 from besman.trees.files import loads_tree
 from besman.trees.manipulation import PlanGrasp, PlanPlace
@@ -59,13 +58,15 @@ ROOT = Path(__file__).resolve().parents[1]
 COMMITTED_POOL = ROOT / "examples" / "pools" / "pick_place_aila"
 LEARNED_TREE = ROOT / "examples" / "trees" / "grasp_then_place_learned.yaml"
 SMALL = ("--tasks", "2", "--budget", "8")
-BLOCKS = task("pick-place").building_blocks("aila")  # what `besman learn` learns by default
-# Pick-and-place tasks (object x, y, place x, y) over the task's box that no pool here was trained on.
+PICK_PLACE = task("pick-place")
+BLOCKS = PICK_PLACE.building_blocks("aila")  # what `besman learn` learns by default
+# Pick-and-place tasks over the task's box that no pool here was trained on (object x, y, yaw, place x, y,
+# yaw, shape, width, depth, height): turned boxes and cylinders of sizes no training task had.
 UNSEEN_TAUS = (
-    (0.5, -0.05, 0.58, -0.44),
-    (0.47, -0.13, 0.6, -0.36),
-    (0.6, -0.02, 0.47, -0.46),
-    (0.55, -0.1, 0.52, -0.4),
+    (0.5, -0.05, 30.0, 0.58, -0.44, -90.0, 0, 0.05, 0.065, 0.07),
+    (0.47, -0.13, -120.0, 0.6, -0.36, 45.0, 1, 0.055, 0.055, 0.06),
+    (0.6, -0.02, 170.0, 0.47, -0.46, 0.0, 0, 0.062, 0.045, 0.055),
+    (0.55, -0.1, -35.0, 0.52, -0.4, 120.0, 1, 0.045, 0.045, 0.075),
 )
 # Two rewards of one block task closer than this are the same achievement: it is what one second of motion
 # (or 1 m of hand path, or 50 m/s^3 of peak jerk) costs. Measured on a machine of another kind than the one
@@ -76,6 +77,12 @@ SAME_REWARD = Reward().per_second
 # A block's instance in a recording: the same frames to within 0.1 s (6 frames at 60 Hz), the tolerance of a
 # hit in the segmentation benchmark.
 SAME_FRAMES = 6
+
+
+def place_tau(place) -> np.ndarray:
+    """Pick and place's whole tau (what block tasks take) for the place ``place`` (x, y, yaw in deg), the rest
+    as AILA's run without a seed: the 6 cm box at (0.55, -0.08), yaw 0."""
+    return PICK_PLACE.join({**PICK_PLACE.default_values("aila"), "place": np.asarray(place, dtype=float)})
 
 
 def _csv(path: Path, channels: dict[str, np.ndarray], rate: float = 60.0) -> Path:
@@ -336,9 +343,9 @@ def test_shaped_keeps_only_what_fits_of_a_deviation_that_would_leave_a_joints_ra
 
 @pytest.mark.parametrize("size", [3.0, 30.0])
 def test_retargeting_adds_the_mapped_human_deviation_to_the_direct_movement(size):
-    world = tabletop_world()
+    world = BLOCKS.world(BLOCKS.centre)  # where learning retargets: the object at (0.55, -0.08)
     arm = Executor(world).arm
-    start = block_start(world, "reach", [0.55, -0.08])
+    start = BLOCKS.start(world, "reach", BLOCKS.centre)
     human = CartesianDMP(execution_time=1.5)
     human.position.weights = np.random.default_rng(2).normal(scale=size, size=human.position.weights.shape)
     mapping = WorkspaceMap(yaw=0.7, scale=0.5, offset=(0.1, 0.2, 1.0))
@@ -385,7 +392,7 @@ def test_a_small_learn_writes_templates_with_provenance_and_figures(small_pool):
     assert {pool[name].task for name in pool} == {"pick-place/aila"}
     assert json.loads((small_pool / "work" / "learn.json").read_text())["task"] == "pick-place"
     reach = pool["reach"]
-    assert reach.box.names == ("object_x", "object_y") and len(reach.taus) == 2
+    assert reach.box.names == INPUT_NAMES and len(reach.taus) == 2  # the hand's move, in 2 training tasks
     facts = reach.provenance
     assert facts["robot"] == "aila" and [r["file"] for r in facts["recordings"]] == [
         "subject1_run1.tsv",
@@ -395,7 +402,9 @@ def test_a_small_learn_writes_templates_with_provenance_and_figures(small_pool):
         all(i["end_frame"] > i["start_frame"] for i in facts["instances"])
         and facts["workspace_map"]["scale"] > 0
     )
-    assert all(len(run["tau"]) == 2 for run in facts["training"])
+    task_columns = len(PICK_PLACE.bounds("aila").names)
+    assert all(len(run["tau"]) == len(INPUT_NAMES) for run in facts["training"])
+    assert all(len(run["task_tau"]) == task_columns for run in facts["training"])
     for figure in ("summary.png", "segmentations.png", "learning_curves.png"):
         assert (small_pool / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -503,9 +512,10 @@ def test_the_same_learn_twice_on_one_machine_writes_the_same_pool_byte_for_byte(
 @pytest.mark.slow
 def test_online_refinement_stays_within_its_budget_and_keeps_what_it_found():
     template = SkillTemplatePool(COMMITTED_POOL)["return"]
-    world = tabletop_world()
-    tau = np.array([0.6, -0.36])
-    start = block_start(world, "return", tau)
+    task_tau = place_tau((0.6, -0.36, 0.0))
+    world = BLOCKS.world(task_tau)
+    start = BLOCKS.start(world, "return", task_tau)
+    tau = block_input(Executor(world).arm, start.start, start.goal)  # the template's input: the hand's move
     result = refine_online(world, start, template, tau, seed=3)
     assert result.rollouts <= MAX_ROLLOUTS and uncertainty(template, tau) > 0
     assert result.best_reward >= result.mean_reward
@@ -522,9 +532,9 @@ def test_the_learned_tree_places_the_box_with_the_committed_pool_and_with_pool(s
             "run",
             str(LEARNED_TREE),
             "--set",
-            "object=0.5,-0.05",
+            "object=0.5,-0.05,0",
             "--set",
-            "place=0.58,-0.44",
+            "place=0.58,-0.44,0",
             "--json",
             *extra,
         )
@@ -560,7 +570,7 @@ def test_block_rollouts_on_ray_equal_those_in_local_processes():
     pytest.importorskip("ray")
     task = BlockTask(BlockTaskConfig("return", str(COMMITTED_POOL / "work" / "shapes" / "return.json")))
     thetas = task.shape.theta + np.random.default_rng(4).normal(scale=0.05, size=(2, task.shape.theta.size))
-    taus = np.array([[0.5, -0.4], [0.6, -0.36]])
+    taus = np.array([place_tau((0.5, -0.4, 0.0)), place_tau((0.6, -0.36, 0.0))])
     local = task.evaluate(thetas, taus)
     remote = task.evaluate(thetas, taus, backend="ray")
     np.testing.assert_array_equal(local.rewards, remote.rewards)
@@ -571,7 +581,9 @@ def test_block_rollouts_on_ray_equal_those_in_local_processes():
 def test_the_learned_tree_refines_unsure_instances_in_a_copy_of_the_world_first():
     text = LEARNED_TREE.read_text().replace("refine_above: 0.08", "refine_above: 0.0")  # every instance
     root = loads_tree(text, base=LEARNED_TREE.parent, source=LEARNED_TREE.name, pool=COMMITTED_POOL)
-    runner = prepare("pick-place", root, values={"object": (0.6, -0.12), "place": (0.47, -0.46)}).runner
+    runner = prepare(
+        "pick-place", root, values={"object": (0.6, -0.12, 0.0), "place": (0.47, -0.46, 0.0)}
+    ).runner
     result = runner.run()
     assert result.status == "SUCCESS"
     planners = [node for node in root.iterate() if isinstance(node, PlanGrasp | PlanPlace)]

@@ -10,9 +10,9 @@ import pytest
 
 import besman.robots as robots
 from besman.robots import packages
+from besman.robots.catalogue import ROBOTS_DIR
 from besman.robots.description import DescriptionError
 from besman.robots.gripper import measure_openings
-from besman.robots.robot import ROBOTS_DIR
 from besman.sim.executor import limit_violations
 from besman.tasks.running import prepare
 

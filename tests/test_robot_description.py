@@ -6,8 +6,8 @@ import shutil
 import pytest
 
 import besman.robots as robots
+from besman.robots.catalogue import ROBOTS_DIR
 from besman.robots.description import DescriptionError
-from besman.robots.robot import ROBOTS_DIR
 from besman.tasks import task
 
 TINY_ARM = """
@@ -146,8 +146,13 @@ def test_an_earlier_description_with_objects_and_places_in_the_tabletop_loads_wi
     assert described.tabletop.reach == ((0.35, 0.52), (-0.1, 0.05))
     assert described.tasks == {"pick-place": {"places": UR5E_PLACES}}
     bounds = task("pick-place").bounds(folder)
-    assert bounds.names == ("object_x", "object_y", "place_x", "place_y")
-    assert bounds.low == (0.35, -0.10, 0.32, -0.45) and bounds.high == (0.52, 0.05, 0.49, -0.31)
+    assert bounds.names == (
+        *("object_x", "object_y", "object_yaw", "place_x", "place_y", "place_yaw"),
+        *("shape", "object_width", "object_depth", "object_height"),
+    )
+    # The areas from the file; yaws the whole circle; the family's sizes (the 8 cm gripper holds its widest).
+    assert bounds.low == (0.35, -0.10, -180, 0.32, -0.45, -180, 0, 0.04, 0.04, 0.05)
+    assert bounds.high == (0.52, 0.05, 180, 0.49, -0.31, 180, 1, 0.07, 0.07, 0.08)
     assert bounds == task("pick-place").bounds("ur5e")  # the shipped UR5e's, now the task's own numbers
     assert robots.load(folder).arm().gripper is not None and task("pick-place").check_robot(folder) == folder
 

@@ -83,8 +83,11 @@ def test_a_per_dimension_template_with_the_top_seed_predicts_and_samples_alike()
 def test_a_tabletop_run_draws_the_same_configuration_for_every_seed(seed):
     pick_place = task("pick-place")
     drawn, again = pick_place.resolve("aila", {}, seed), pick_place.resolve("aila", {}, seed)
-    assert drawn.keys() == again.keys() == {"object", "place"}
-    assert all(np.array_equal(drawn[name], again[name]) and len(drawn[name]) == 2 for name in drawn)
+    assert drawn.keys() == again.keys() == {"object", "place", "shape", "size"}
+    columns = {value.name: len(value.names) for value in pick_place.values}  # 3, 3, 1, 3
+    assert all(
+        np.array_equal(drawn[name], again[name]) and len(drawn[name]) == columns[name] for name in drawn
+    )
     pick_place.bounds("aila").check(pick_place.join(drawn))
 
 

@@ -1,6 +1,8 @@
 """The stack task: three boxes on a spot on the table in the order tau gives, on every robot it fits; its
 values checked before any work; its rule (the stack stands 2 s within 1 cm) judged in the simulation."""
 
+import math
+
 import pytest
 
 from besman.skills.errors import InputError
@@ -23,7 +25,9 @@ def test_tau_sets_the_spot_and_the_order_bottom_to_top():
     prepared = prepare("stack", values={"spot": (0.54, 0.11), "order": (3,)})
     items = prepared.runner.run_info["settings"]
     assert items["order"] == list(ORDERS[3]) and items["spot"] == [0.54, 0.11]
-    heights = [round(item["target"][2], 3) for item in _objects()]
+    targets = [item["target"] for item in _objects()]  # x, y, yaw (deg), the height of the top it goes on
+    assert all(target[:3] == [0.54, 0.11, 0.0] for target in targets)  # on the spot, square to each other
+    heights = [round(target[3], 3) for target in targets]
     assert heights == [0.78, 0.843, 0.906]  # the table, the tops of one and two 6 cm boxes (and 3 mm each)
 
 
@@ -61,8 +65,8 @@ def test_a_stack_that_falls_is_not_done():
         prepared = prepare("stack", values={"spot": (0.54, 0.11), "order": (0,)})
         world = prepared.runner.executor.world
         for level, item in enumerate(_objects()):
-            x, y, z = item["target"]
-            world.place_on(item["object"], "table", x + (shift if level == 2 else 0.0), y)
+            x, y, yaw, z = item["target"]
+            world.place_on(item["object"], "table", x + (shift if level == 2 else 0.0), y, math.radians(yaw))
             joint = world.model.joint(item["object"])
             world.data.qpos[joint.qposadr[0] + 2] = z + 0.03
         measured = prepared.measure()

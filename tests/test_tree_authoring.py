@@ -34,7 +34,9 @@ BAD_FILES = {
     "wrong kind": "besman_tree: 1\nroot:\n  Grasp: {name: g, attempts: two}\n",
     "out of range": "besman_tree: 1\nroot:\n  Grasp: {name: g, attempts: 0}\n",
     "not an allowed value": "besman_tree: 1\nroot:\n  Gripper: {name: g, action: grab}\n",
-    "wrong list length": "besman_tree: 1\nroot:\n  ObjectAt: {name: o, object: box, position: [1, 2, 3, 4]}",
+    "wrong list length": (  # a position is x, y[, yaw[, z]]
+        "besman_tree: 1\nroot:\n  ObjectAt: {name: o, object: box, position: [1, 2, 3, 4, 5]}"
+    ),
     "no children": "besman_tree: 1\nroot:\n  Sequence: {name: s, children: []}\n",
     "two types in a node": "besman_tree: 1\nroot:\n  Wait: {name: w, duration: 1}\n  Gripper: {name: g}\n",
     "wrong version": "besman_tree: 2\nroot:\n  Wait: {name: w, duration: 1}\n",
@@ -135,6 +137,6 @@ def test_schema_prints_or_writes_json_and_refuses_a_bad_output(tmp_path, capsys)
 def test_the_guides_tutorial_tree_runs():
     block = re.search(r"<!-- tutorial-tree -->\n```yaml\n(.*?)```", GUIDE.read_text(), re.S).group(1)
     tree = loads_tree(block, base=ROOT / "examples" / "trees", source="grasp_hold_place.yaml")
-    summary = run("pick-place", tree, values={"object": (0.55, -0.08), "place": (0.54, -0.41)})
+    summary = run("pick-place", tree, values={"object": (0.55, -0.08, 0.0), "place": (0.54, -0.41, 0.0)})
     assert summary.status == "SUCCESS" and summary.success and summary.task == "pick-place"
     assert summary.measurements["placement_error_m"] < 0.02

@@ -28,9 +28,9 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
             "run",
             str(TREE),
             "--set",
-            "object=0.55,-0.10",
+            "object=0.55,-0.10,30",
             "--set",
-            "place=0.50,-0.40",
+            "place=0.50,-0.40,0",
             "--json",
             "--log",
             str(log),
@@ -46,7 +46,12 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
     assert summary["tree"] == str(TREE.resolve()) and summary["robot"] == "aila"
     assert summary["status"] == "SUCCESS" and summary["failed_node"] is None
     header, records, result = read_log(log)
-    assert header["run"]["settings"] == {"object": [0.55, -0.10], "place": [0.50, -0.40]}
+    assert header["run"]["settings"] == {
+        "object": [0.55, -0.10, 30.0],
+        "place": [0.50, -0.40, 0.0],
+        "shape": [0.0],
+        "size": [0.06, 0.06, 0.06],
+    }
     assert header["run"]["task"] == "pick-place" and header["run"]["values"] == header["run"]["settings"]
     final_box = np.array(records[-1]["robot"]["objects"]["box"])
     assert summary["measurements"]["placement_error_m"] == pytest.approx(
@@ -62,27 +67,45 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
 @pytest.mark.slow
 def test_the_log_replays_to_the_same_statuses(tmp_path):
     log = tmp_path / "run.jsonl"
-    run(tree=TREE, values={"object": (0.5, -0.05), "place": (0.58, -0.44)}, log=log)
+    run(
+        tree=TREE,
+        values={"object": (0.5, -0.05, 30.0), "place": (0.58, -0.44, 0.0), "shape": "cylinder"},
+        log=log,
+    )
     _, records, _ = read_log(log)
     assert replay(log) == list(statuses(records))
 
 
 def test_values_outside_the_bounds_are_rejected(capsys):
-    code = main(["run", str(TREE), "--set", "object=0.55,-0.20", "--set", "place=0.40,0.25"])
+    code = main(["run", str(TREE), "--set", "object=0.55,-0.20,0", "--set", "place=0.40,0.25,0"])
     assert code == 2
     assert "tau object_y = -0.2 is outside the task's bounds [-0.15, 0]" in capsys.readouterr().err
+    assert main(["run", str(TREE), "--set", "object=0.55,-0.1,270"]) == 2
+    assert "tau object_yaw = 270 is outside the task's bounds [-180, 180]" in capsys.readouterr().err
     assert main(["run", str(TREE), "--set", "object=near"]) == 2
-    assert "--set 'object=near': the values must be numbers" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--set object: takes numbers (object_x, object_y, object_yaw), got 'near'" in err
+    assert main(["run", str(TREE), "--set", "object=0.55,-0.1"]) == 2
+    assert "--set object needs 3 number(s) (object_x, object_y, object_yaw), got 2" in capsys.readouterr().err
+
+
+def columns(shown: dict) -> dict:
+    """``besman tasks show --json``'s tau columns, by name: (unit, range)."""
+    return {column["name"]: (column["unit"], column["range"]) for column in shown["tau"]}
 
 
 def test_tasks_show_prints_the_bounds(capsys):
     assert main(["tasks", "show", "pick-place", "--json"]) == 0
     shown = json.loads(capsys.readouterr().out)
-    assert shown["bounds"] == PICK_PLACE_BOUNDS.as_dict()
+    assert [column["name"] for column in shown["tau"]] == list(PICK_PLACE.names)
+    assert {name: span for name, (_, span) in columns(shown).items()} == PICK_PLACE_BOUNDS.as_dict()
+    assert shown["values"]["object"]["units"] == ["m", "m", "deg"]
     assert main(["tasks", "show", "throwing", "--json"]) == 0
-    bounds = json.loads(capsys.readouterr().out)["bounds"]
-    assert bounds == task("throwing").bounds("pa10").as_dict()
-    assert list(bounds.values()) == [[-7.0, -1.0], [-5.0, 1.0]]  # the target's x and y on the floor
+    shown = json.loads(capsys.readouterr().out)
+    throwing = task("throwing").bounds("pa10").as_dict()
+    assert {name: span for name, (_, span) in columns(shown).items()} == throwing
+    # the target's x and y on the floor
+    assert columns(shown) == {"target_x": ("m", [-7.0, -1.0]), "target_y": ("m", [-5.0, 1.0])}
     assert main(["tasks", "show", "juggling"]) == 2
     unknown = f"unknown task 'juggling'; tasks: {', '.join(TASKS)}"
     assert unknown in capsys.readouterr().err and "pick-place, pick, place" in unknown
@@ -91,7 +114,9 @@ def test_tasks_show_prints_the_bounds(capsys):
     assert main(["tasks", "show", "pick-place"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert f"randomised: {PICK_PLACE.randomised}" in lines and f"success: {PICK_PLACE.success}" in lines
-    assert "default tree: grasp_then_place.yaml" in lines and "place_y\t[-0.48, -0.34]" in lines
+    assert "default tree: grasp_then_place.yaml" in lines and "place_y\t[-0.48, -0.34] m" in lines
+    assert "place_yaw\t[-180, 180] deg" in lines and "shape\t[0, 1]: 0 = box, 1 = cylinder" in lines
+    assert "objects: box or cylinder, width 0.04-0.07 m, height 0.05-0.08 m" in "\n".join(lines)
     assert main(["tasks", "show", "throwing", "--robot", "ur5e"]) == 2
     assert "task throwing does not run on 'ur5e'; it runs on: pa10" in capsys.readouterr().err
 
@@ -118,12 +143,14 @@ def test_seeded_settings_are_reproducible_and_in_bounds():
 def test_without_a_seed_a_run_takes_the_tasks_default_configuration():
     """No longer drawn: AILA's documented configuration, other robots the middle of their areas."""
     values = PICK_PLACE.resolve("aila", {}, None)
-    assert PICK_PLACE.join(values).tolist() == [0.55, -0.08, 0.54, -0.41]
-    ur5e = PICK_PLACE.bounds("ur5e")
-    middle = (np.asarray(ur5e.low) + np.asarray(ur5e.high)) / 2
-    np.testing.assert_allclose(PICK_PLACE.join(PICK_PLACE.resolve("ur5e", {}, None)), middle)
-    given = PICK_PLACE.resolve("aila", {"place": (0.5, -0.4)}, None)
-    assert PICK_PLACE.join(given).tolist() == [0.55, -0.08, 0.5, -0.4]
+    box = [0.0, 0.06, 0.06, 0.06]  # the 6 cm box
+    assert PICK_PLACE.join(values).tolist() == [0.55, -0.08, 0.0, 0.54, -0.41, 0.0, *box]
+    ur5e = PICK_PLACE.bounds("ur5e").as_dict()
+    middle = [sum(ur5e[name]) / 2 for name in ("object_x", "object_y", "place_x", "place_y")]
+    expected = [*middle[:2], 0.0, *middle[2:], 0.0, *box]
+    np.testing.assert_allclose(PICK_PLACE.join(PICK_PLACE.resolve("ur5e", {}, None)), expected)
+    given = PICK_PLACE.resolve("aila", {"place": (0.5, -0.4, 90.0), "shape": "cylinder"}, None)
+    assert PICK_PLACE.join(given).tolist() == [0.55, -0.08, 0.0, 0.5, -0.4, 90.0, 1.0, 0.06, 0.06, 0.06]
 
 
 @pytest.mark.slow

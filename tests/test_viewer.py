@@ -19,6 +19,13 @@ from tests.helpers import run_cli, serve_then_interrupt
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 WIDTH, HEIGHT = 1280, 800
+# x, y (m) and yaw (deg) each, and pick and place's 6 cm box (a seed draws its mass and friction)
+CONFIGURATION = {
+    "object": (0.55, -0.08, 0.0),
+    "place": (0.54, -0.41, 0.0),
+    "shape": (0,),
+    "size": (0.06,) * 3,
+}
 
 needs_chromium = pytest.mark.skipif(
     shutil.which("chromium") is None, reason="needs Debian's chromium (apt-get install chromium)"
@@ -100,9 +107,7 @@ def test_a_running_grasp_then_place_is_seen_in_the_browser_with_its_tree():
 
     from playwright.sync_api import sync_playwright
 
-    runner = prepare(
-        "pick-place", grasp_then_place(), values={"object": (0.55, -0.08), "place": (0.54, -0.41)}, seed=0
-    ).runner
+    runner = prepare("pick-place", grasp_then_place(), values=CONFIGURATION, seed=0).runner
     world = runner.executor.world
     viewer = Viewer(world.model)
     runner.observe = Watch(viewer, speed=0.5)  # about 20 s of wall time
@@ -219,7 +224,7 @@ def test_a_logged_run_replays_scene_and_tree_on_one_timeline(tmp_path):
     from besman.trees.watching import Replay
 
     log = tmp_path / "run.jsonl"
-    run("pick-place", grasp_then_place(), values={"object": (0.55, -0.08), "place": (0.54, -0.41)}, log=log)
+    run("pick-place", grasp_then_place(), values=CONFIGURATION, log=log)
     replay = Replay(log, executor_of, {"port": 0})
     try:
         middle = len(replay.records) // 2
@@ -306,7 +311,7 @@ def test_the_browser_runs_pauses_breaks_and_moves_the_task():
 
     session = Session(
         grasp_then_place(),
-        {"object": (0.55, -0.08), "place": (0.54, -0.41)},
+        {"object": (0.55, -0.08, 30.0), "place": (0.54, -0.41, 0.0)},
         task="pick-place",
         speed=2.0,
         viewer_options={"port": 0},
@@ -338,6 +343,7 @@ def test_the_browser_runs_pauses_breaks_and_moves_the_task():
             drag(page, session, "object", -0.06)
             assert wait_until(lambda: session.values["object"][0] < 0.53, 10), session.state.content
             moved = session.values["object"]
+            assert moved[2] == 30.0, "dragged in x and y: the yaw stays"
             page.get_by_role(
                 "button", name="Run", exact=True
             ).click()  # the paused run gives way to a new one
@@ -369,10 +375,11 @@ def test_two_browsers_see_one_run_and_one_may_leave():
     from besman.tasks.session import Session
     from besman.trees.runner import statuses
 
-    values = {"object": (0.55, -0.08), "place": (0.54, -0.41)}
+    values = CONFIGURATION
     unwatched = prepare("pick-place", grasp_then_place(), values=values).runner
     unwatched.run()
-    session = Session(grasp_then_place(), values, task="pick-place", speed=1.0, viewer_options={"port": 0})
+    # at half speed the run (about 10 s of simulation) outlasts the pages' steps on a loaded machine
+    session = Session(grasp_then_place(), values, task="pick-place", speed=0.5, viewer_options={"port": 0})
     try:
         with sync_playwright() as playwright:
             browser = headless_chromium(playwright, CHROMIUM)
@@ -398,6 +405,71 @@ def test_two_browsers_see_one_run_and_one_may_leave():
         session.close()
 
 
+def _mesh_extent(session, node: str) -> np.ndarray:
+    """The half extents (x, y, z) of the mesh the page is sent for a scene node."""
+    import trimesh
+
+    glb = session.viewer.server.scene._handle_from_node_name[node]._impl.props.glb_data
+    low, high = trimesh.load(io.BytesIO(glb), file_type="glb", force="mesh").bounds
+    return (high - low) / 2
+
+
+def test_the_session_drags_x_and_y_keeps_the_yaw_and_shows_the_object_as_it_is():
+    """Server side, no browser: pick-place's object and place are x, y and yaw; their gizmos stand at x, y on
+    their surfaces and the target ring at the place's; letting go of a gizmo sets x and y and keeps the yaw
+    (a value the run would refuse is refused by name, and shown); a shape and size set for the next run
+    rebuild the page's object as it is, a cylinder of that diameter and height, standing at the yaw."""
+    import mujoco
+
+    from besman.sim.objects import yaw_of
+    from besman.skills.errors import InputError
+    from besman.tasks.session import Session
+
+    def ring() -> np.ndarray:
+        points = session.viewer.server.scene._handle_from_node_name["/overlays/place"]._impl.props.points
+        return points.reshape(-1, 3).mean(axis=0)
+
+    session = Session(
+        grasp_then_place(),
+        {"object": (0.55, -0.08, 30.0), "place": (0.54, -0.41, -45.0)},
+        task="pick-place",
+        viewer_options={"port": 0},
+    )
+    try:
+        table, shelf = session.surfaces["object"], session.surfaces["place"]
+        np.testing.assert_allclose(session.gizmos["object"].position, (0.55, -0.08, table))
+        np.testing.assert_allclose(session.gizmos["place"].position, (0.54, -0.41, shelf))
+        np.testing.assert_allclose(ring()[:2], (0.54, -0.41), atol=1e-6)
+        np.testing.assert_allclose(_mesh_extent(session, "/bodies/box/group0"), (0.03, 0.03, 0.03), atol=1e-4)
+        session.set_value("object", (0.5, -0.05))  # what letting go of its gizmo does
+        session.set_value("place", (0.5, -0.4))
+        assert session.values["object"] == (0.5, -0.05, 30.0)
+        assert session.values["place"] == (0.5, -0.4, -45.0)
+        np.testing.assert_allclose(session.gizmos["object"].position, (0.5, -0.05, table))
+        np.testing.assert_allclose(ring()[:2], (0.5, -0.4), atol=1e-6)
+        with pytest.raises(InputError, match=r"tau object_x = 0\.9 is outside the task's bounds"):
+            session.set_value("object", (0.9, -0.05))
+        with pytest.raises(InputError, match="'sphere' is not one of box, cylinder"):
+            session.set_value("shape", "sphere")
+        assert session.values["object"] == (0.5, -0.05, 30.0) and session.values["shape"] == (0.0,)
+        session.set_value("shape", "cylinder")
+        session.set_value("size", (0.05, 0.04, 0.07))  # a cylinder's depth is its diameter
+        assert session.values["shape"] == (1.0,) and session.values["size"] == (0.05, 0.05, 0.07)
+        session.reset()  # what Run does next, for the values set
+        world = session.runner.executor.world
+        assert session.runner.run_info["values"]["object"] == [0.5, -0.05, 30.0]
+        shown = session.viewer.scene.mj_model.geom("box")
+        assert world.model.geom("box").type == shown.type == mujoco.mjtGeom.mjGEOM_CYLINDER
+        np.testing.assert_allclose(shown.size, world.model.geom("box").size)
+        np.testing.assert_allclose(
+            _mesh_extent(session, "/bodies/box/group0"), (0.025, 0.025, 0.035), atol=1e-4
+        )
+        pose = world.object_pose("box")
+        assert np.degrees(yaw_of(pose.rotation)) == pytest.approx(30.0, abs=1e-6)
+    finally:
+        session.close()
+
+
 def test_overlays_and_the_tree_panel_follow_a_template_run():
     """Server side, no browser: a tree that instantiates a skill template and executes the instance. The
     overlays show the instance's planned hand path (ending where the hand ends), the executed path, the
@@ -413,9 +485,7 @@ def test_overlays_and_the_tree_panel_follow_a_template_run():
     from besman.trees.leaves import ExecutePrimitive, InstantiateSkillTemplate
     from besman.trees.runner import Runner
 
-    runner = prepare(
-        "pick-place", grasp_then_place(), values={"object": (0.55, -0.08), "place": (0.54, -0.41)}, seed=0
-    ).runner
+    runner = prepare("pick-place", grasp_then_place(), values=CONFIGURATION, seed=0).runner
     arm, box = runner.executor.arm, runner.executor.world.objects["box"]
     taus = np.array([[0.5, -0.12], [0.6, -0.12], [0.5, 0.0], [0.6, 0.0]])
     reaches = [plan_pick(arm, arm.measured().copy(), box, tau, PickPlacePlan()).reach for tau in taus]

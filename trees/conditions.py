@@ -16,7 +16,9 @@ from typing import ClassVar
 import numpy as np
 from py_trees.common import Access, Status
 
-from besman.sim.outcomes import PLACE_TOLERANCE
+from besman.sim.manipulation import Target
+from besman.sim.objects import yaw_error, yaw_of
+from besman.sim.outcomes import PLACE_TOLERANCE, YAW_TOLERANCE
 from besman.sim.proximity import ArmProximity
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
@@ -42,11 +44,13 @@ class ObjectGrasped(SimulationBehaviour):
 
 
 class ObjectAt(SimulationBehaviour):
-    """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``? A target
-    is a place's (x, y), or (x, y, z) with z the top the object is set down on: its bottom is judged there."""
+    """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``, and turned to
+    its yaw within :data:`~besman.sim.outcomes.YAW_TOLERANCE` if it has one? Either is a target as
+    :meth:`~besman.sim.manipulation.Target.read` takes it: x, y, the yaw (deg), the height z of the top the
+    object is set down on (its bottom is judged there)."""
 
     roles: ClassVar = {"target": Access.READ}
-    parameters: ClassVar = {"object": "str", "position": "floats[2|3]", "tolerance": "float>0"}
+    parameters: ClassVar = {"object": "str", "position": "floats[2|3|4]", "tolerance": "float>0"}
 
     def __init__(
         self,
@@ -69,13 +73,21 @@ class ObjectAt(SimulationBehaviour):
         target = (
             self.position if self.position is not None else np.asarray(self.blackboard.get("target"), float)
         )
-        item = self.object
-        where = self.executor.world.object_pose(item).position[: len(target)].copy()
-        if self.position is None and len(target) == 3:
-            where[2] -= self.executor.world.objects[item].half_height
-        distance = float(np.linalg.norm(where - target))
-        self.feedback_message = f"{item} is {distance * 100:.1f} cm from {np.round(target, 3).tolist()}"
-        return Status.SUCCESS if distance <= self.tolerance else Status.FAILURE
+        item, world = self.object, self.executor.world
+        wanted, pose = Target.read(target), world.object_pose(item)
+        offset = pose.position[:2] - wanted.xy
+        if wanted.top is not None:
+            bottom = pose.position[2] - world.objects[item].half_height
+            offset = np.r_[offset, bottom - wanted.top]
+        distance = float(np.linalg.norm(offset))
+        turned = 0.0
+        if wanted.yaw is not None:
+            turned = yaw_error(yaw_of(pose.rotation), wanted.yaw, world.objects[item])
+        self.feedback_message = f"{item} is {distance * 100:.1f} cm from {np.round(target, 3).tolist()}" + (
+            "" if wanted.yaw is None else f", turned {np.degrees(turned):.1f} deg from its yaw"
+        )
+        aligned = np.degrees(turned) <= YAW_TOLERANCE
+        return Status.SUCCESS if distance <= self.tolerance and aligned else Status.FAILURE
 
 
 class AtPose(SimulationBehaviour):

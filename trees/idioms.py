@@ -32,7 +32,7 @@ from besman.skills.errors import InputError
 from besman.skills.validation import COUNT, as_given, checked, instance, non_negative, optional, shaped, text
 from besman.trees.base import NAMES, RoleBehaviour, SimulationBehaviour
 from besman.trees.conditions import ObjectAt, ObjectGrasped
-from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
+from besman.trees.leaves import ExecutePrimitive, Gripper
 from besman.trees.manipulation import (
     DEFAULT_PLAN,
     LEARNED,
@@ -108,6 +108,7 @@ def _as_written(arguments: Mapping[str, Any], parameters: Mapping[str, str]) -> 
         "remap": "keys",
         "arm": "str",
         "offset": "floats[2]",
+        "target": "str",
         **LEARNED,
     },
     PlanGrasp,
@@ -121,15 +122,18 @@ def grasp(
     remap: Mapping[str, str] | None = None,
     arm: str | None = None,
     offset: tuple[float, float] | None = None,
+    target: str | None = None,
     pool: Mapping[str, Any] | None = None,
     template: str | None = None,
     refine_above: float | None = None,
     plan: PickPlacePlan = DEFAULT_PLAN,
 ) -> py_trees.behaviour.Behaviour:
     """A subtree that grasps ``object`` (a name, or a key holding one) with ``arm`` (default: the executor's
-    own), ``offset`` from its centre, and lifts it; up to ``attempts`` tries from fresh perception. With a
-    ``pool`` and a ``template``, the reach is the template's (see :class:`PlanGrasp`)."""
-    remap = _checked(name, remap or {}, PlanGrasp)
+    own), ``offset`` from its centre, and lifts it; up to ``attempts`` tries from fresh perception. With
+    ``target`` (the key of the placement the grasp is for), it grasps so that the object can be set down
+    there at the target's yaw. With a ``pool`` and a ``template``, the reach is the template's (see
+    :class:`PlanGrasp`)."""
+    remap = _checked(name, remap or {}, PlanGrasp) | ({"target": target} if target is not None else {})
     planning = PlanGrasp(
         "plan grasp",
         object=object,
@@ -187,59 +191,73 @@ def place(
 
 
 @checked(**SUBTREE_ARGUMENTS)
-@_node_type("GraspThenPlace", {"object": "str", "target": "str", "attempts": "int>=1"})
+@_node_type(
+    "GraspThenPlace",
+    {
+        "object": "str",
+        "target": "str",
+        "attempts": "int>=1",
+        "pool": "pool",
+        "grasp_template": "str",
+        "place_template": "str",
+    },
+)
 def grasp_then_place(
     name: str = "grasp then place",
     *,
     object: str = "box",
     target: str = "/task/place",
     attempts: int = 3,
+    pool: Mapping[str, Any] | None = None,
+    grasp_template: str | None = None,
+    place_template: str | None = None,
     plan: PickPlacePlan = DEFAULT_PLAN,
 ) -> py_trees.behaviour.Behaviour:
     """Grasp ``object`` (unless already held) and place it at the blackboard key ``target``; a failure
-    anywhere (a slip, a missed grasp) retries from the top, up to ``attempts`` times."""
+    anywhere (a slip, a missed grasp) retries from the top, up to ``attempts`` times. With a ``pool``, the
+    grasp's reach is its ``grasp_template`` and the carry its ``place_template`` (each optional: planned
+    without one), instantiated for the moves planned (zero-shot: whatever task the pool was learned in)."""
+    if pool is None and (grasp_template or place_template):
+        raise InputError(f"{name}: grasp_template and place_template need a pool")
     holding = py_trees.composites.Selector(
         "hold the object",
         memory=True,
-        children=[ObjectGrasped("holding?", object=object), grasp("grasp", object=object, plan=plan)],
+        children=[
+            ObjectGrasped("holding?", object=object),
+            grasp("grasp", object=object, target=target, plan=plan, **_learned(pool, grasp_template)),
+        ],
     )
-    sequence = py_trees.composites.Sequence(
-        f"{name} steps",
-        memory=True,
-        children=[holding, place("place", object=object, target=target, plan=plan)],
-    )
+    put = place("place", object=object, target=target, plan=plan, **_learned(pool, place_template))
+    sequence = py_trees.composites.Sequence(f"{name} steps", memory=True, children=[holding, put])
     return py_trees.decorators.Retry(name, sequence, num_failures=attempts)
 
 
 @checked(**SUBTREE_ARGUMENTS)
-@_node_type("ReturnHome", {**TEMPLATE_PARAMETERS, "namespace": "str", "target": "str"})
+@_node_type("ReturnHome", {**TEMPLATE_PARAMETERS, "namespace": "str"})
 def return_home(
     name: str = "return home",
     *,
     pool: Mapping[str, Any],
     template: str,
     namespace: str = "return",
-    target: str = "/task/place",
 ) -> py_trees.behaviour.Behaviour:
-    """A subtree that instantiates the ``template`` of ``pool`` for the place ``target`` (its tau), fits the
-    primitive between where the arm is and the home configuration, and executes it."""
+    """A subtree that instantiates the ``template`` of ``pool`` for the move from where the arm is to the
+    home configuration, fits the primitive between the two, and executes it."""
     check_template(name, pool, template)
     keys = PlanReturn.role_keys(namespace, {})
     return py_trees.composites.Sequence(
         name,
         memory=True,
         children=[
-            InstantiateSkillTemplate(
-                "instantiate return",
-                pool=pool,
-                template_name=template,
-                namespace=namespace,
-                remap={"tau": target, "primitive": keys["shape"]},
-            ),
-            PlanReturn("plan return", namespace=namespace),
+            PlanReturn("plan return", pool=pool, template=template, namespace=namespace),
             ExecutePrimitive("return", remap={"primitive": keys["return"]}),
         ],
     )
+
+
+def _learned(pool: Mapping[str, Any] | None, template: str | None) -> dict:
+    """A subtree's learned-motion arguments: the pool and the template, if a template is named."""
+    return {} if template is None else {"pool": pool, "template": template}
 
 
 def _planning(plan, namespace, remap, arm, pool, template, refine_above) -> dict:

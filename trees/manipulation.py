@@ -3,14 +3,16 @@
 - :class:`PerceiveObject` writes an object's current position (simulated perception) to ``object_position``.
 - :class:`PlanGrasp` reads ``object_position`` and writes the ``reach``, ``descend`` and ``lift``
   primitives planned from the robot's current commanded state (:func:`besman.sim.manipulation.plan_pick`).
-- :class:`PlanPlace` reads the ``target`` (x, y) and writes ``carry``, ``place`` and ``retreat``.
-- :class:`PlanReturn` reads ``shape`` (a learned return) and writes ``return``, fitted to end at home.
+- :class:`PlanPlace` reads the ``target`` (:meth:`~besman.sim.manipulation.Target.read`: x, y, and the yaw
+  and the top it is set on if any) and writes ``carry``, ``place`` and ``retreat``.
+- :class:`PlanReturn` writes ``return``: a learned return home from where the arm is.
 - :class:`PlanMove` writes ``motion``: the hand to a position, straight up, or the arm home (presenting an
   object to the other hand, letting go of it, making room).
 
 The reach, the carry and the return can come from skill templates learned from people
-(:mod:`besman.learning.pipeline`), instantiated for the tau the leaf perceives and refined online where the
-template is unsure.
+(:mod:`besman.learning.pipeline`), instantiated for the move the leaf plans (the hand's move from the
+block's start to its planned end, :func:`~besman.sim.blocks.block_input`: the same for any object, place
+or task) and refined online where the template is unsure.
 
 The subtrees that use them are in :mod:`besman.trees.idioms`.
 """
@@ -24,7 +26,7 @@ import numpy as np
 from py_trees.common import Access, Status
 
 from besman.learning.online import Refinement, refine_online, uncertainty
-from besman.sim.blocks import BLOCK_PARAMETERS, BlockStart, snapshot, steps_after
+from besman.sim.blocks import INPUT_NAMES, BlockStart, block_input, snapshot, steps_after
 from besman.sim.manipulation import (
     DEFAULT_PLAN,
     PickPlacePlan,
@@ -33,6 +35,7 @@ from besman.sim.manipulation import (
     plan_pick,
     plan_place,
 )
+from besman.sim.objects import yaw_of
 from besman.sim.primitives import shaped
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
@@ -43,6 +46,24 @@ from besman.trees.templates import check_template, check_template_fits
 # template is unsure (see _Plan).
 TEMPLATE_PARAMETERS = {"pool": "pool", "template": "str"}
 LEARNED = {**TEMPLATE_PARAMETERS, "refine_above": "float>=0"}
+
+
+class TemplateInstance:
+    """A skill template's primitive for a block's move from configuration ``start`` to ``end`` (its
+    template input, :func:`~besman.sim.blocks.block_input`), as the planners take a learned move; keeps
+    the input of the last one it gave. A pool entry may instead condition on the move's end
+    configurations themselves (a baseline such as ProMP conditioning): it then has
+    ``primitive_for_move(start, end)``."""
+
+    def __init__(self, template, arm) -> None:
+        self.template, self.arm = template, arm
+        self.tau: np.ndarray | None = None
+
+    def __call__(self, start: np.ndarray, end: np.ndarray):
+        self.tau = block_input(self.arm, start, end)
+        if hasattr(self.template, "primitive_for_move"):
+            return self.template.primitive_for_move(start, end)
+        return self.template.instantiate(self.tau)
 
 
 class PerceiveObject(SimulationBehaviour):
@@ -67,14 +88,14 @@ class PerceiveObject(SimulationBehaviour):
 
 
 class _Plan(SimulationBehaviour):
-    """A planning leaf: in one tick, plans from the robot's commanded configuration and the (x, y) in its
+    """A planning leaf: in one tick, plans from the robot's commanded configuration and the place in its
     ``source`` role with its ``planner``, and writes the primitives to its other roles.
 
     With a ``pool`` and a ``template`` name, the big move (reach or carry) is the template's
-    instance for the task tau the leaf perceives - a learned primitive moved to the planned end points -
-    instead of a point-to-point move. With ``refine_above`` as well, an instance whose template is less sure
-    of tau than that (:func:`besman.learning.online.uncertainty`) is first refined by at most 25 rollouts in
-    a copy of the world (:func:`besman.learning.online.refine_online`)."""
+    instance for the move planned (:class:`TemplateInstance`) - a learned primitive moved to the planned
+    end points - instead of a point-to-point move. With ``refine_above`` as well, an instance whose
+    template is less sure of its input than that (:func:`besman.learning.online.uncertainty`) is first
+    refined by at most 25 rollouts in a copy of the world (:func:`besman.learning.online.refine_online`)."""
 
     source = ""
     block = ""
@@ -103,20 +124,18 @@ class _Plan(SimulationBehaviour):
             raise InputError(f"{name}: refine_above needs a pool and a template")
         self.refinement: Refinement | None = None  # the last online refinement (for feedback and tests)
         for role in self.roles:
-            self.use(role)
+            if self.roles[role] is Access.WRITE or role == self.source or role in self.remap:
+                self.use(role)
 
     def setup(self, **kwargs: Any) -> None:
         super().setup(**kwargs)
         if self.pool is not None:
             robot = self.executor.world.robot.name
-            check_template_fits(self.name, self.pool[self.template], robot, BLOCK_PARAMETERS[self.block])
+            check_template_fits(self.name, self.pool[self.template], robot, INPUT_NAMES)
 
     @property
     def outputs(self) -> tuple[str, ...]:
-        return tuple(role for role in self.roles if role != self.source)
-
-    def tau(self, where: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        return tuple(role for role, access in self.roles.items() if access is Access.WRITE)
 
     def goal(self, source: np.ndarray, item: str) -> np.ndarray:
         """Where the hand goes, from the value of the ``source`` role."""
@@ -128,17 +147,16 @@ class _Plan(SimulationBehaviour):
         if item is None:
             self.feedback_message = f"no object {self.object!r} in the world"
             return Status.FAILURE
-        where = np.asarray(self.blackboard.get(self.source), dtype=float)[:2]
-        goal = self.goal(np.asarray(self.blackboard.get(self.source), dtype=float), item.name)
-        self.refinement, template, shape, note = None, None, None, ""
+        source = np.asarray(self.blackboard.get(self.source), dtype=float)
+        goal = self.goal(source, item.name)
+        self.refinement, template, learned, note = None, None, None, ""
         try:
             if self.pool is not None:
                 template = self.pool[self.template]
-                tau = self.tau(where)
-                shape = template.instantiate(tau)
-            motions = self._planned(goal, item, shape)
+                learned = TemplateInstance(template, executor.arm)
+            motions = self._planned(goal, item, learned)
             if template is not None and self.refine_above is not None:
-                motions, note = self._refined(motions, template, tau, where, goal, item)
+                motions, note = self._refined(motions, template, learned.tau, source, goal, item)
         except (PlanningError, ValueError) as error:
             self.feedback_message = str(error)
             return Status.FAILURE
@@ -149,7 +167,7 @@ class _Plan(SimulationBehaviour):
         return Status.SUCCESS
 
     def _refined(
-        self, motions, template, tau: np.ndarray, where: np.ndarray, goal: np.ndarray, item
+        self, motions, template, tau: np.ndarray, source: np.ndarray, goal: np.ndarray, item
     ) -> tuple[Any, str]:
         """The motions planned again with the template's instance refined online, if the template's spread
         at tau is above ``refine_above``; and a note for the feedback."""
@@ -163,7 +181,7 @@ class _Plan(SimulationBehaviour):
             executor.position.copy(),
             getattr(motions, self.outputs[0]).dmp.goal.copy(),
             steps_after(self.block, motions),
-            where,
+            source,
         )
         self.refinement = refine_online(executor.world, start, template, tau)
         note = (
@@ -187,11 +205,13 @@ def _planning_roles(source: str, *outputs: str) -> dict[str, Access]:
 class PlanGrasp(_Plan):
     """Plans reach, descend and lift for the object at ``object_position``, grasped ``offset`` (x, y in
     m, default its centre) from its centre: where it stands on the table or, held by another hand, in the
-    air."""
+    air; across the faces that fit as the object is turned now (perceived with its position). With the
+    role ``target`` remapped (the placement the grasp is for), a grasp from which the object can be set
+    down there at the target's yaw."""
 
     parameters: ClassVar = {**_Plan.parameters, "offset": "floats[2]"}
     source = "object_position"
-    roles: ClassVar = _planning_roles(source, "reach", "descend", "lift")
+    roles: ClassVar = {**_planning_roles(source, "reach", "descend", "lift"), "target": Access.READ}
     block = "reach"
     planner = plan_pick
 
@@ -222,29 +242,29 @@ class PlanGrasp(_Plan):
         )
         self.offset = np.zeros(2) if offset is None else np.asarray(offset, dtype=float)
 
-    def tau(self, where: np.ndarray) -> np.ndarray:
-        return where  # the reach's tau: the object's x, y
-
     def goal(self, source: np.ndarray, item: str) -> np.ndarray:
         return np.r_[source[:2] + self.offset, source[2]]
+
+    def _planned(self, goal: np.ndarray, item, shape):
+        executor = self.executor
+        yaw = yaw_of(executor.world.object_pose(item.name).rotation)
+        then = self.blackboard.get("target") if "target" in self.remap else None
+        settings = executor.reference_settings
+        return plan_pick(executor.arm, executor.position, item, goal, self.plan, settings, shape, yaw, then)
 
 
 class PlanPlace(_Plan):
     """Plans carry, place and retreat to the ``target`` from the current configuration: x, y on the shelf,
-    or x, y, z onto a top at height z (another object's: a stack)."""
+    turned to a yaw (deg) if it has one, onto a top at a height if it has one (another object's: a stack;
+    :meth:`~besman.sim.manipulation.Target.read`)."""
 
     source = "target"
     roles: ClassVar = _planning_roles(source, "carry", "place", "retreat")
     block = "carry"
     planner = plan_place
 
-    def tau(self, where: np.ndarray) -> np.ndarray:
-        # The carry's tau: where the box was picked (the hand is above it, holding it) and the target.
-        hand = self.executor.arm.site_pose(self.executor.position).position
-        return np.r_[hand[:2], where]
-
     def goal(self, source: np.ndarray, item: str) -> np.ndarray:
-        return source[:3]
+        return source
 
     def _planned(self, goal: np.ndarray, item, shape):
         # The object, not the hand, goes to the target: where it is held off its centre (a bar taken over at
@@ -260,31 +280,42 @@ class PlanPlace(_Plan):
 
 
 class PlanReturn(SimulationBehaviour):
-    """Writes ``return``: the primitive ``shape`` (a learned return, as
-    :class:`~besman.trees.leaves.InstantiateSkillTemplate` writes it from the template for the place) moved
-    to start where the arm is now and to end at the robot's home configuration."""
+    """Writes ``return``: the instance of the ``template`` of ``pool`` (a learned return) for the move from
+    where the arm is now to the robot's home configuration, moved to those end points."""
 
-    roles: ClassVar = {"shape": Access.READ, "return": Access.WRITE}
+    roles: ClassVar = {"return": Access.WRITE}
+    parameters: ClassVar = dict(TEMPLATE_PARAMETERS)
 
-    def __init__(self, name: str, *, namespace: str = "", remap: Mapping[str, str] | None = None):
+    def __init__(
+        self,
+        name: str,
+        *,
+        pool: Mapping[str, Any],
+        template: str,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ):
         super().__init__(name, namespace=namespace, remap=remap)
-        for role in self.roles:
-            self.use(role)
+        check_template(name, pool, template)
+        self.pool, self.template = pool, template
+        self.use("return")
+
+    def setup(self, **kwargs: Any) -> None:
+        super().setup(**kwargs)
+        check_template_fits(self.name, self.pool[self.template], self.executor.world.robot.name, INPUT_NAMES)
 
     def update(self) -> Status:
         executor = self.executor
         arm = executor.arm
-        if not self.blackboard.exists("shape"):
-            self.feedback_message = f"no primitive at {self.key('shape')}"
-            return Status.FAILURE
         try:
             home = executor.world.home(arm.qpos_indices)
-            primitive = shaped(self.blackboard.get("shape"), "return", executor.position, home, arm)
+            shape = TemplateInstance(self.pool[self.template], arm)(executor.position, home)
+            primitive = shaped(shape, "return", executor.position, home, arm)
         except ValueError as error:
             self.feedback_message = str(error)
             return Status.FAILURE
         self.blackboard.set("return", primitive, overwrite=True)
-        self.feedback_message = "planned the return home"
+        self.feedback_message = f"planned the return home (template {self.template!r})"
         return Status.SUCCESS
 
 

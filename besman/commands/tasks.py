@@ -1,4 +1,4 @@
-"""`besman tasks` and `besman experiment`: the tasks' parameter bounds and the paper's experiments."""
+"""`besman tasks` and `besman experiment`: the tasks' values and ranges, and the paper's experiments."""
 
 from __future__ import annotations
 
@@ -28,9 +28,23 @@ def _tasks_show(args: argparse.Namespace) -> int:
     print(f"randomised: {facts['randomised']}")
     print(f"success: {facts['success']}")
     print(f"default tree: {facts['tree'] or 'none'}")
-    for name, (low, high) in facts["bounds"].items():
-        print(f"{name}\t[{low:g}, {high:g}]")
+    for column in facts["tau"]:  # name, range and unit; a choice's index and name
+        low, high = column["range"]
+        unit = f" {column['unit']}" if column["unit"] else ""
+        choices = ", ".join(f"{index} = {name}" for index, name in enumerate(column.get("choices", ())))
+        print(f"{column['name']}\t[{low:g}, {high:g}]{unit}" + (f": {choices}" if choices else ""))
+    if "objects" in facts:
+        objects = facts["objects"]
+        print(
+            f"objects: {' or '.join(objects['shapes'])}, width {_span(objects['width_m'])} m, height "
+            f"{_span(objects['height_m'])} m, mass {_span(objects['mass_kg'])} kg, friction "
+            f"{_span(objects['friction'])}; the gripper opens {objects['gripper_opening_m']:g} m"
+        )
     return 0
+
+
+def _span(numbers) -> str:
+    return f"{numbers[0]:g}-{numbers[1]:g}"
 
 
 def _experiment_throwing(args: argparse.Namespace) -> int:
@@ -58,11 +72,15 @@ def register(commands) -> None:
     tasks.set_defaults(handler=_tasks_list)
     task_commands = tasks.add_subparsers(dest="tasks_command", metavar="ACTION")
     task_show = task_commands.add_parser(
-        "show", help="a task on a robot: what it is, what is randomised, success, tau's box, its areas"
+        "show",
+        help="a task on a robot: what it is, what is randomised, success, each number of tau with its unit "
+        "(lengths in m, yaws in degrees) and range, a choice's names (a shape), the objects it draws",
     )
     task_show.add_argument("name")
     task_show.add_argument("--robot", default=None, help="the robot (default: the task's own)")
-    task_show.add_argument("--json", action="store_true")
+    task_show.add_argument(
+        "--json", action="store_true", help="everything as JSON: its values, tau's columns, its own facts"
+    )
     task_show.set_defaults(handler=_tasks_show)
 
     experiment = commands.add_parser("experiment", help="the paper's experiments")

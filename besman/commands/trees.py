@@ -44,7 +44,9 @@ def _tree_render(args: argparse.Namespace) -> int:
     return 0
 
 
-def _parse_sets(pairs: Sequence[str]) -> dict[str, tuple[float, ...]]:
+def _parse_sets(pairs: Sequence[str]) -> dict[str, tuple[float, ...] | str | tuple[str, ...]]:
+    """``--set NAME=V[,V...]`` as numbers, or as the words given (a choice's name, ``shape=cylinder``): the
+    task's value converts and checks them when the run resolves it, so parsing needs no task."""
     values = {}
     for pair in pairs:
         name, equals, text = pair.partition("=")
@@ -52,13 +54,36 @@ def _parse_sets(pairs: Sequence[str]) -> dict[str, tuple[float, ...]]:
             raise InputError(f"--set {pair!r}: expected name=value[,value...]")
         if name in values:
             raise InputError(f"--set {name}: given twice")
+        items = [item.strip() for item in text.split(",")]
         try:
-            values[name] = tuple(float(v) for v in text.split(","))
+            values[name] = tuple(float(item) for item in items)
         except ValueError:
-            raise InputError(f"--set {pair!r}: the values must be numbers separated by commas") from None
+            values[name] = items[0] if len(items) == 1 else tuple(items)
+            continue
         if not all(math.isfinite(v) for v in values[name]):
             raise InputError(f"--set {pair!r}: the values must be finite numbers")
     return values
+
+
+def _words(given) -> bool:
+    return isinstance(given, str) or isinstance(given[0], str)
+
+
+def _check_words(values: dict, task) -> None:
+    """Words, before any work: a choice's name for one of ``task``'s values (its own check names what it
+    takes); any other value (one the tree reads) takes numbers."""
+    known = {value.name: value for value in task.values}
+    for name, given in values.items():
+        if not _words(given):
+            continue
+        if name in known:
+            known[name].numbers(given)
+        else:
+            text = given if isinstance(given, str) else ",".join(given)
+            raise InputError(
+                f"--set {name}={text}: the values must be numbers separated by commas ({name} is not a value "
+                f"of task {task.name}, whose values are {', '.join(known) or 'none'})"
+            )
 
 
 def _print_summary(summary, as_json: bool) -> None:
@@ -126,7 +151,15 @@ def _run(args: argparse.Namespace) -> int:
     check_view(args)
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,), kind=LOG_KIND)
-    summary, viewers = run_task(args, tree=args.file, values=_parse_sets(args.set), log=args.log)
+    values = _parse_sets(args.set)
+    if any(_words(given) for given in values.values()):
+        from besman.tasks import task
+        from besman.trees.files import tree_task
+
+        named = tree_task(args.file)
+        if named is not None:  # a file that names no task is refused by the run, as a subtree
+            _check_words(values, task(named))
+    summary, viewers = run_task(args, tree=args.file, values=values, log=args.log)
     _print_summary(summary, args.json)
     return serve(viewers, 0 if summary.success else 1)
 
@@ -149,12 +182,12 @@ def _demo(args: argparse.Namespace) -> int:
         from besman.trees.runner import LOG_KIND
 
         check_output(args.log, option="--log", suffixes=(".jsonl",), kind=LOG_KIND)
+    values = _parse_sets(args.set)
+    _check_words(values, chosen)
     args.robot = chosen.check_robot(args.robot)
     if not args.json:
         print(f"{chosen.name} ({chosen.tree}) on {args.robot}")
-    summary, viewers = run_task(
-        args, task=chosen, values=_parse_sets(args.set), log=args.log, demo=chosen.name
-    )
+    summary, viewers = run_task(args, task=chosen, values=values, log=args.log, demo=chosen.name)
     _print_summary(summary, args.json)
     if not args.json:
         print(
@@ -183,8 +216,9 @@ def _set_option(command: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="NAME=VALUE[,VALUE]",
-        help="a task value (besman tasks show TASK lists them, e.g. place=x,y) or any /task value the tree "
-        "reads",
+        help="a task value, its numbers in the units besman tasks show TASK gives (lengths in m, yaws in "
+        "degrees: e.g. object=x,y,yaw), or for a value with choices a name (e.g. shape=cylinder); or any "
+        "/task value the tree reads (numbers; repeatable)",
     )
 
 

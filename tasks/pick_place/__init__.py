@@ -1,20 +1,29 @@
 """Pick and place: the robot takes a box from the table and puts it on the shelf with its first arm (AILA:
 the right arm and the waist). Also its two halves as tasks of their own, ``pick`` and ``place``.
 
+The object (the world's ``box``, whatever its shape) comes from :data:`FAMILY`: a box (width, depth, height)
+or a cylinder (diameter, height), its width bounded by what the robot's first gripper holds
+(:meth:`~besman.sim.objects.ObjectFamily.for_gripper`).
+
 - **pick-place** (default tree ``grasp_then_place.yaml``; the demo's earlier name ``grasp-then-place``).
-  Randomised: tau = object x, y (where the 6 cm box stands on the table: the area the robot's first arm
-  reaches, its description's ``tabletop.reach``) and place x, y (its target on the shelf board:
-  :data:`PLACES`), drawn uniformly. Success (:func:`~besman.tasks.pick_place.rule.placement`): after 0.3 s
-  to settle, the box stands upright (tilt < 10 deg) on the shelf within 2 cm of the place target.
-- **pick** (``grasp.yaml``): tau = object x, y. Success: the box is in the hand and 5 cm above where it
-  stood (:func:`~besman.tasks.pick_place.rule.lifted`).
-- **place** (``place.yaml``): tau = object x, y and place x, y; the run begins with the box in the hand, 5 cm
-  above where it stood (grasped by the planned pick). Success as pick-place's.
+  Randomised: tau = ``object`` x, y, yaw (where the object stands on the table: the area the robot's first
+  arm reaches, its description's ``tabletop.reach``; yaw in deg over the whole circle), ``place`` x, y, yaw
+  (its target on the shelf board, :data:`PLACES`, and the yaw it should stand at), ``shape`` (box or
+  cylinder) and ``size`` (width, depth, height: a cylinder's diameter is its width, its depth is set to
+  it), drawn uniformly; the seed also draws the object's mass and friction from the family's ranges.
+  Success (:func:`~besman.tasks.pick_place.rule.measure_placement`): after 0.3 s to settle, the object
+  stands upright (tilt < 10 deg) on the shelf within 2 cm of the place target and within 5 deg of its yaw
+  (modulo the object's symmetry: a box's 180 deg, a square box's 90, a cylinder any).
+- **pick** (``grasp.yaml``): tau = object, shape and size. Success: the object is in the hand and 5 cm
+  above where it stood (:func:`~besman.tasks.pick_place.rule.measure_lift`).
+- **place** (``place.yaml``): tau as pick-place's; the run begins with the object in the hand, 5 cm above
+  where it stood (grasped by the planned pick). Success as pick-place's.
 
 Without a seed, AILA's run uses :data:`DEFAULT_CONFIGURATION` (the documentation's examples use it too) and
-other robots the middle of their areas. Learning (``besman learn``) imitates and refines three building
-blocks of the task, ``reach``, ``carry`` and ``return`` (:mod:`besman.tasks.pick_place.blocks`); policy
-search tunes the scripted plan's numbers (:mod:`besman.tasks.pick_place.episode`).
+other robots the middle of their areas, each with the 6 cm box where it fits (:data:`DEFAULT_OBJECT`).
+Learning (``besman learn``) imitates and refines three building blocks of the task, ``reach``, ``carry``
+and ``return`` (:mod:`besman.tasks.pick_place.blocks`); policy search tunes the scripted plan's numbers
+(:mod:`besman.tasks.pick_place.episode`).
 
 Sim and tree modules are imported by the methods that need them, so that listing the tasks stays fast.
 """
@@ -26,7 +35,9 @@ from typing import ClassVar
 
 import numpy as np
 
+from besman.sim.objects import FINGER_CLEARANCE, GraspableObject, ObjectFamily
 from besman.skills.errors import InputError
+from besman.skills.seeds import child_seed
 from besman.skills.tasks import TaskBounds
 from besman.tasks.base import Scene, Task, TaskValue
 
@@ -38,13 +49,33 @@ PLACES = {
     "ur5e": ((0.32, 0.49), (-0.45, -0.31)),
     "openarm": ((0.17, 0.30), (-0.42, -0.32)),
 }
-DEFAULT_CONFIGURATION = {"aila": {"object": (0.55, -0.08), "place": (0.54, -0.41)}}
+DEFAULT_CONFIGURATION = {"aila": {"object": (0.55, -0.08, 0.0), "place": (0.54, -0.41, 0.0)}}
+FAMILY = ObjectFamily()  # boxes and cylinders 4-7 cm wide, 5-8 cm high, 0.1-0.3 kg, friction 0.7-1.0
+DEFAULT_OBJECT = {"shape": (0,), "size": (0.06, 0.06, 0.06)}  # the 6 cm box, clipped to what fits
 OBJECT = TaskValue(
-    "object", ("object_x", "object_y"), "m", "where the box stands on the table", surface="table"
+    "object",
+    ("object_x", "object_y", "object_yaw"),
+    ("m", "m", "deg"),
+    "where the object stands on the table, and its yaw",
+    surface="table",
 )
 PLACE = TaskValue(
-    "place", ("place_x", "place_y"), "m", "where the box goes on the shelf", surface="shelf", target=True
+    "place",
+    ("place_x", "place_y", "place_yaw"),
+    ("m", "m", "deg"),
+    "where the object goes on the shelf, and the yaw it should stand at",
+    surface="shelf",
+    target=True,
 )
+SHAPE = TaskValue("shape", ("shape",), "", "the object's shape", whole=True, choices=FAMILY.shapes)
+SIZE = TaskValue(
+    "size",
+    ("object_width", "object_depth", "object_height"),
+    "m",
+    "the object's width, depth and height (a cylinder: diameter, diameter, height)",
+)
+YAWS = (-180.0, 180.0)  # deg: the whole circle
+PROPERTIES_STREAM = 1  # the child of the run's seed that draws the object's mass and friction
 
 
 def _read_places(section: dict, where: str, layout):
@@ -67,6 +98,48 @@ def areas(robot: str):
     return layout.reach, places
 
 
+def aperture(robot: str) -> float:
+    """How far (m) the pads of ``robot``'s first gripper are apart, open to grasp."""
+    import besman.robots as robots
+
+    return 2 * next(iter(robots.describe(robot).arms.values())).gripper.open
+
+
+def family(robot: str) -> ObjectFamily:
+    """:data:`FAMILY` as ``robot``'s first gripper holds it; a gripper too small for any of it is refused
+    with both numbers."""
+    return FAMILY.for_gripper(aperture(robot), robot)
+
+
+def _check_holdable(robot: str, size: np.ndarray, shape: np.ndarray) -> None:
+    """An object of ``size`` (width, depth, height) and ``shape`` fits in the robot's open gripper, or an
+    error gives both widths."""
+    if len(size) != 3 or len(shape) != 1:
+        return  # the count is refused by resolve, with the names
+    cylinder = FAMILY.shapes[int(shape[0]) % len(FAMILY.shapes)] == "cylinder"
+    narrowest = float(size[0] if cylinder else min(size[0], size[1]))
+    needed, opening = narrowest + 2 * FINGER_CLEARANCE, aperture(robot)
+    if needed > opening + 1e-9:
+        raise InputError(
+            f"--set size: the object is {narrowest * 100:.1f} cm across its narrowest side and needs an "
+            f"opening of {needed * 100:.1f} cm ({FINGER_CLEARANCE * 100:.1f} cm clearance on each side); "
+            f"robot {robot!r}'s gripper opens {opening * 100:.1f} cm"
+        )
+
+
+def the_object(robot: str, values, seed: int | None) -> GraspableObject:
+    """The task's object (the world's ``box``) for its ``shape`` and ``size`` values, its mass and friction
+    drawn with ``seed`` from the family's ranges (without one: their middles)."""
+    objects = family(robot)
+    if seed is None:
+        mass, friction = (sum(objects.mass) / 2, sum(objects.friction) / 2)
+    else:
+        rng = np.random.default_rng(child_seed(seed, PROPERTIES_STREAM))
+        mass, friction = rng.uniform(*objects.mass), rng.uniform(*objects.friction)
+    shape = objects.shapes[int(values["shape"][0])]
+    return objects.make("box", shape, values["size"], mass, friction)
+
+
 def one_hand_tabletop(robot) -> bool:
     """A work surface, a first arm with a gripper and a place area: what pick and place needs."""
     arms = list(robot.arms.values())
@@ -76,18 +149,23 @@ def one_hand_tabletop(robot) -> bool:
 class PickPlace(Task):
     name = "pick-place"
     aliases = ("grasp-then-place",)
-    title = "pick the box from the table and place it on the shelf"
-    randomised = "the box's position on the table and its target on the shelf (tau)"
+    title = "pick the object from the table and place it on the shelf"
+    randomised = (
+        "the object's position and yaw on the table, its target position and yaw on the shelf, its shape and "
+        "size (tau); its mass and friction (the seed)"
+    )
     success = (
-        "after settling 0.3 s the box stands upright (tilt < 10 deg) on the shelf within 2 cm of the target"
+        "after settling 0.3 s the object stands upright (tilt < 10 deg) on the shelf within 2 cm of the "
+        "target and 5 deg of its yaw (modulo the object's symmetry)"
     )
     robot = "aila"
     tree = "grasp_then_place.yaml"
-    values = (OBJECT, PLACE)
+    values = (OBJECT, PLACE, SHAPE, SIZE)
     measurements: ClassVar[Mapping[str, str]] = {
-        "placement_error_m": "the box's distance from its target on the shelf, in the plane",
-        "tilt_deg": "the box's tilt from upright",
-        "box_position": "where the box ended, x, y, z in the world",
+        "placement_error_m": "the object's distance from its target on the shelf, in the plane",
+        "placement_yaw_error_deg": "how far the object's yaw is from the target's, modulo its symmetry",
+        "tilt_deg": "the object's tilt from upright",
+        "box_position": "where the object ended, x, y, z in the world",
     }
 
     def fits(self, robot) -> bool:
@@ -99,33 +177,50 @@ class PickPlace(Task):
             raise InputError(
                 f"robot {robot!r} has no pick-and-place areas: task {self.name} does not run on it"
             )
-        areas_in_order = {"object": found[0], "place": found[1]}
-        names, low, high = [], [], []
-        for value in self.values:
-            (x0, x1), (y0, y1) = areas_in_order[value.name]
-            names += value.names
-            low += [x0, y0]
-            high += [x1, y1]
-        return TaskBounds(tuple(names), tuple(low), tuple(high))
+        objects = family(robot)
+        ranges = {
+            "object": (*found[0], YAWS),
+            "place": (*found[1], YAWS),
+            "shape": ((0, len(objects.shapes) - 1),),
+            "size": (objects.width, objects.width, objects.height),
+        }
+        spans = [span for value in self.values for span in ranges[value.name]]
+        low, high = zip(*spans, strict=True)
+        names = self.names
+        return TaskBounds(names, low, high)
 
     def default_values(self, robot: str) -> dict[str, np.ndarray]:
         import besman.robots as robots
 
-        given = DEFAULT_CONFIGURATION.get(robots.describe(robot).name)
-        if given is None:
-            return super().default_values(robot)
-        return {value.name: np.asarray(given[value.name], dtype=float) for value in self.values}
+        values = super().default_values(robot)
+        given = {**DEFAULT_CONFIGURATION.get(robots.describe(robot).name, {}), **DEFAULT_OBJECT}
+        for value in self.values:
+            if value.name in given:
+                values[value.name] = np.asarray(given[value.name], dtype=float)
+        bounds = self.bounds(robot)
+        return self.split(np.clip(self.join(values), bounds.low, bounds.high))
 
-    def world(self, robot: str):
+    def resolve(self, robot: str, given, seed: int | None) -> dict[str, np.ndarray]:
+        """As :meth:`Task.resolve`; an object the robot's gripper cannot hold is refused with both widths,
+        and a cylinder's depth is its diameter."""
+        if "size" in given and "size" in {value.name for value in self.values}:
+            _check_holdable(robot, SIZE.numbers(given["size"]), SHAPE.numbers(given.get("shape", "box")))
+        values = super().resolve(robot, given, seed)
+        if "size" in values and FAMILY.shapes[int(values["shape"][0])] == "cylinder":
+            values["size"] = np.array([values["size"][0], values["size"][0], values["size"][2]])
+        return values
+
+    def world(self, robot: str, item: GraspableObject):
         from besman.sim.world import tabletop_world
 
-        return tabletop_world(robot=robot)
+        return tabletop_world((item,), robot=robot)
 
     def scene(self, robot: str, values, seed: int | None) -> Scene:
         from besman.sim.executor import Executor
 
-        world = self.world(robot)
-        world.place_on("box", "table", *values["object"])
+        world = self.world(robot, the_object(robot, values, seed))
+        x, y, yaw = values["object"]
+        world.place_on("box", "table", x, y, np.radians(yaw))
         executor = Executor(world)
         return Scene(executor, dict(values), _listed(values), lambda: self.judge(executor, values))
 
@@ -147,26 +242,35 @@ class PickPlace(Task):
 
     def facts(self, robot: str) -> dict:
         objects, places = areas(robot)
+        held = family(robot)
         return {
             "areas": {
                 "objects": {"x": list(objects[0]), "y": list(objects[1])},
                 "places": {"x": list(places[0]), "y": list(places[1])},
-            }
+            },
+            "objects": {
+                "gripper_opening_m": round(aperture(robot), 4),
+                "shapes": list(held.shapes),
+                "width_m": list(held.width),
+                "height_m": list(held.height),
+                "mass_kg": list(held.mass),
+                "friction": list(held.friction),
+            },
         }
 
 
 class Pick(PickPlace):
     name = "pick"
     aliases = ()
-    title = "pick the box from the table and lift it"
-    randomised = "the box's position on the table (tau)"
-    success = "the box is in the hand, 5 cm above where it stood"
+    title = "pick the object from the table and lift it"
+    randomised = "the object's position and yaw on the table, its shape and size (tau); its mass and friction"
+    success = "the object is in the hand, 5 cm above where it stood"
     tree = "grasp.yaml"
-    values = (OBJECT,)
+    values = (OBJECT, SHAPE, SIZE)
     measurements: ClassVar[Mapping[str, str]] = {
-        "lift_m": "how far above where it stood the box ended",
-        "held": "whether the hand holds the box",
-        "box_position": "where the box ended, x, y, z in the world",
+        "lift_m": "how far above where it stood the object ended",
+        "held": "whether the hand holds the object",
+        "box_position": "where the object ended, x, y, z in the world",
     }
 
     def judge(self, executor, values):
@@ -184,14 +288,16 @@ class Pick(PickPlace):
 class Place(PickPlace):
     name = "place"
     aliases = ()
-    title = "put the box, held in the hand above the table, on the shelf"
-    randomised = "where the box was grasped on the table and its target on the shelf (tau)"
+    title = "put the object, held in the hand above the table, on the shelf"
+    randomised = (
+        "where the object was grasped on the table, its target on the shelf, its shape and size (tau)"
+    )
     tree = "place.yaml"
 
     def scene(self, robot: str, values, seed: int | None) -> Scene:
         from besman.tasks.pick_place.blocks import held_above_table
 
-        executor = held_above_table(self.world(robot), values["object"], values["place"])
+        executor = held_above_table(self.world(robot, the_object(robot, values, seed)), values)
         return Scene(executor, dict(values), _listed(values), lambda: self.judge(executor, values))
 
     def batched(self, robot: str):

@@ -1,6 +1,12 @@
 """Pick and place's building blocks as learning takes them: reach, carry and return
-(:mod:`besman.sim.blocks` simulates each on its own), their tau boxes on a robot, and rollouts of one block
-for many thetas as a batched task for policy search (:class:`BlockTask`, local processes or Ray).
+(:mod:`besman.sim.blocks` simulates each on its own), the training tasks they are refined in, and rollouts
+of one block for many thetas as a batched task for policy search (:class:`BlockTask`, local processes or
+Ray).
+
+A training task is a whole pick-and-place tau (object position and yaw, place and yaw, shape, size) drawn
+over the task's box; each block's template takes the hand's move over the block
+(:func:`~besman.sim.blocks.block_input`), which is what makes it usable for objects, places and tasks it was
+not learned in.
 """
 
 from __future__ import annotations
@@ -11,10 +17,11 @@ import numpy as np
 
 from besman.learning.blocks import BuildingBlocks
 from besman.sim.blocks import (
-    BLOCK_PARAMETERS,
     BLOCKS,
+    INPUT_NAMES,
     BlockStart,
     Reward,
+    block_input,
     check_block,
     prepare,
     restore,
@@ -22,42 +29,36 @@ from besman.sim.blocks import (
 )
 from besman.sim.evaluation import BatchedTask, Evaluation
 from besman.sim.executor import Executor
-from besman.sim.world import World, tabletop_world
+from besman.sim.world import World
 from besman.skills import MovementPrimitive
-from besman.skills.tasks import TaskBounds
 
 
-def block_bounds(block: str, robot: str = "aila") -> TaskBounds:
-    """The box of a block's tau on ``robot``: its columns of the task's bounds."""
+def _task():
     from besman.tasks.pick_place import PickPlace
 
-    check_block(block)
-    return PickPlace().bounds(robot).columns(BLOCK_PARAMETERS[block])
+    return PickPlace()
 
 
-def full_tau(block: str, tau, robot: str = "aila") -> np.ndarray:
-    """The pick-and-place tau of a block's tau; the parameters it does not use sit at the bounds' centre."""
-    from besman.tasks.pick_place import PickPlace
+def world(robot: str, tau) -> World:
+    """The tabletop world of ``robot`` with the object of the pick-and-place ``tau`` (its middle mass and
+    friction)."""
+    from besman.tasks.pick_place import the_object
 
-    check_block(block)
-    bounds = PickPlace().bounds(robot)
-    tau = bounds.columns(BLOCK_PARAMETERS[block]).check(tau)[0]
-    full = (np.asarray(bounds.low) + np.asarray(bounds.high)) / 2
-    for value, name in zip(tau, BLOCK_PARAMETERS[block], strict=True):
-        full[bounds.names.index(name)] = value
-    return full
+    task = _task()
+    return task.world(robot, the_object(robot, task.split(tau), None))
 
 
 def start(world: World, block: str, tau) -> BlockStart:
-    """Where ``block`` begins for its ``tau`` on the world's robot (:func:`~besman.sim.blocks.prepare`)."""
-    full = full_tau(block, tau, str(world.robot.folder))
-    return prepare(world, block, full[:2], full[2:])
+    """Where ``block`` begins for the pick-and-place ``tau`` in ``world`` (built for its object)."""
+    values = _task().split(tau)
+    return prepare(world, block, values["object"], values["place"])
 
 
-def held_above_table(world: World, object_xy, place_xy) -> Executor:
-    """``world`` with the box picked from ``object_xy`` by the planned motions, in the hand where the carry
-    to ``place_xy`` begins (5 cm above where it stood), and an executor to go on from there."""
-    restore(world, prepare(world, "carry", object_xy, place_xy).state)
+def held_above_table(world: World, values) -> Executor:
+    """``world`` with its object picked where the task ``values`` put it by the planned motions, in the
+    hand where the carry to the place begins (5 cm above where it stood), and an executor to go on from
+    there."""
+    restore(world, prepare(world, "carry", values["object"], values["place"]).state)
     return Executor(world)
 
 
@@ -77,22 +78,27 @@ class BlockTaskConfig:
 
 class BlockTask(BatchedTask):
     """Rollouts of one block for thetas of its primitive (the weights matter: the end points are planned
-    per tau) in block taus; rewards by :class:`Reward`, details :class:`BlockOutcome`."""
+    per tau) in pick-and-place taus; rewards by :class:`Reward`, details :class:`BlockOutcome`."""
 
     def __init__(self, config: BlockTaskConfig) -> None:
         check_block(config.block)
         self.config = config
-        self.bounds = block_bounds(config.block, config.robot)
+        self.bounds = _task().bounds(config.robot)
         self.shape = MovementPrimitive.load(config.shape)
-        self.world = tabletop_world(robot=config.robot)
-        self._starts: dict[tuple[float, ...], BlockStart] = {}
+        self._starts: dict[tuple[float, ...], tuple[World, BlockStart]] = {}
 
-    def start(self, tau) -> BlockStart:
-        """The block's start for ``tau`` (prepared once, then kept)."""
+    def start(self, tau) -> tuple[World, BlockStart]:
+        """The world of ``tau``'s object and the block's start in it (prepared once, then kept)."""
         key = tuple(float(v) for v in self.bounds.check(tau)[0])
         if key not in self._starts:
-            self._starts[key] = start(self.world, self.config.block, key)
+            built = world(self.config.robot, key)
+            self._starts[key] = built, start(built, self.config.block, key)
         return self._starts[key]
+
+    def input(self, tau) -> np.ndarray:
+        """The block's template input for ``tau`` (the hand's move over it)."""
+        built, begins = self.start(tau)
+        return block_input(Executor(built).arm, begins.start, begins.goal)
 
     @property
     def n_params(self) -> int:
@@ -102,7 +108,7 @@ class BlockTask(BatchedTask):
         details = []
         for theta, tau in zip(thetas, taus, strict=True):
             self.shape.dmp.set_params(theta)
-            details.append(rollout(self.world, self.start(tau), self.shape))
+            details.append(rollout(*self.start(tau), self.shape))
         return Evaluation(np.array([self.config.reward.score(d) for d in details]), tuple(details))
 
 
@@ -116,15 +122,18 @@ def building_blocks(task, robot: str) -> BuildingBlocks:
     """Pick and place's blocks on ``robot`` as learning takes them: reach, carry and return, played on the
     shared recordings by the person's second pick and place (clusters 4-6 of six, or the annotations'
     ``approach_right``, ``move_obj_shelf`` and ``move_to_rest_down``); the reach's and the carry's goals
-    anchor the map from the person's workspace to the robot's."""
+    anchor the map from the person's workspace to the robot's, at the task's default tau. Training tasks
+    are drawn over the task's whole box."""
     return BuildingBlocks(
         task=task.name,
         robot=robot,
         names=BLOCKS,
         roles=ROLES,
         anchors=("reach", "carry"),
-        bounds=lambda block: block_bounds(block, robot),
-        world=lambda: tabletop_world(robot=robot),
+        centre=task.join(task.default_values(robot)),
+        draw=lambda count, seed: task.spread(robot, count, seed),
+        world=lambda tau: world(robot, tau),
         start=start,
+        input_names=INPUT_NAMES,
         refinement=lambda block, shape: BlockTaskConfig(block, shape, robot=robot),
     )

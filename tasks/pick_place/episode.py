@@ -1,7 +1,8 @@
 """Pick and place as a scripted episode with numbers to tune: the task's batched evaluate for policy search.
 
 theta tunes the plan (:class:`~besman.sim.manipulation.PickPlacePlan`: heights, clearances), tau is the
-task's (object x, y, place x, y). An episode runs the pick-and-place sequence
+task's (:class:`~besman.tasks.pick_place.PickPlace`: object and place positions and yaws, shape, size; the
+object's mass and friction the middles of their ranges). An episode runs the pick-and-place sequence
 (:data:`~besman.sim.manipulation.PICK_STEPS` and ``PLACE_STEPS``) of joint-space movement primitives planned
 by :mod:`besman.sim.manipulation` and executed by the Ruckig executor: open the gripper, reach above the
 object, descend, close (a grasp is required), lift, carry above the place, set down, release, retreat;
@@ -17,8 +18,8 @@ from dataclasses import dataclass, fields
 import mujoco
 import numpy as np
 
-from besman.robots.robot import ROBOT
-from besman.sim.blocks import step_motion
+from besman.robots.catalogue import ROBOT
+from besman.sim.blocks import OBJECT, step_motion
 from besman.sim.evaluation import BatchedTask, Evaluation
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.manipulation import (
@@ -30,8 +31,9 @@ from besman.sim.manipulation import (
     plan_place,
 )
 from besman.sim.motions import MotionStatus
+from besman.sim.objects import GraspableObject
 from besman.sim.outcomes import lifted, placement
-from besman.sim.world import DEFAULT_BOX, GraspableObject, World, tabletop_world
+from besman.sim.world import World
 from besman.skills.validation import checked, instance
 
 FAILURE_REWARD = -1.0
@@ -52,12 +54,11 @@ class PickPlaceDetail:
     limit_violations: tuple[str, ...] = ()  # commanded joint states beyond a limit (from the command log)
 
 
-@checked(item=instance(GraspableObject, "a GraspableObject"), robot=ROBOT)
+@checked(robot=ROBOT)
 @dataclass(frozen=True)
 class PickPlaceConfig:
     """Everything that defines the task; ``build()`` makes it (also on Ray workers)."""
 
-    item: GraspableObject = DEFAULT_BOX
     robot: str = "aila"
 
     def build(self) -> PickPlaceTask:
@@ -65,7 +66,7 @@ class PickPlaceConfig:
 
 
 class PickPlaceTask(BatchedTask):
-    """The pick-and-place task; see the module documentation. ``evaluate(thetas (N, 6), taus (N, 4))``:
+    """The pick-and-place task; see the module documentation. ``evaluate(thetas (N, 6), taus (N, 10))``:
     reward = -placement error (m) on success, else -1; details are :class:`PickPlaceDetail`; the episodes
     run in worker processes (the control loop is Python: threads would wait on each other)."""
 
@@ -74,8 +75,18 @@ class PickPlaceTask(BatchedTask):
         from besman.tasks.pick_place import PickPlace
 
         self.config = config
-        self.bounds = PickPlace().bounds(config.robot)
-        self.world = tabletop_world((config.item,), config.robot)
+        self.task = PickPlace()
+        self.bounds = self.task.bounds(config.robot)
+        self._worlds: dict[GraspableObject, World] = {}
+
+    def world(self, tau) -> World:
+        """A world with the object of ``tau`` (built once per object, then kept)."""
+        from besman.tasks.pick_place import the_object
+
+        item = the_object(self.config.robot, self.task.split(tau), None)
+        if item not in self._worlds:
+            self._worlds[item] = self.task.world(self.config.robot, item)
+        return self._worlds[item]
 
     @staticmethod
     def default_theta() -> np.ndarray:
@@ -88,38 +99,48 @@ class PickPlaceTask(BatchedTask):
     # -- one episode ---------------------------------------------------------------------------------------
 
     def episode(self, tau, theta=None, *, world: World | None = None) -> PickPlaceDetail:
-        """Runs one pick-and-place episode in ``world`` (default: the task's own) and measures it."""
+        """Runs one pick-and-place episode in ``world`` (default: one with tau's object) and measures it."""
         tau = self.bounds.check(tau)[0]
         plan = PickPlacePlan.from_theta(self.default_theta() if theta is None else theta)
-        return run_episode(world or self.world, self.config.item, tau, plan)
+        return run_episode(world or self.world(tau), self.task.split(tau), plan)
 
     def check_theta(self, theta: np.ndarray) -> None:
         PickPlacePlan.from_theta(theta)  # a plan outside its valid ranges is refused before any work
 
     def evaluate_locally(self, thetas: np.ndarray, taus: np.ndarray) -> Evaluation:
-        """The episodes one after the other in this process, in the task's own world."""
+        """The episodes one after the other in this process, in worlds with their taus' objects."""
         details = tuple(
-            run_episode(self.world, self.config.item, tau, PickPlacePlan.from_theta(theta))
+            run_episode(self.world(tau), self.task.split(tau), PickPlacePlan.from_theta(theta))
             for theta, tau in zip(thetas, taus, strict=True)
         )
         rewards = np.array([-d.placement_error if d.success else FAILURE_REWARD for d in details])
         return Evaluation(rewards, details)
 
 
-def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: PickPlacePlan) -> PickPlaceDetail:
-    """Resets ``world``, places the box at tau's object position, plans and runs the scripted sequence."""
+def run_episode(world: World, values: dict, plan: PickPlacePlan) -> PickPlaceDetail:
+    """Resets ``world``, places its object where the task ``values`` say, plans and runs the scripted
+    sequence."""
     world.reset()
-    object_xy, place_xy = tau[:2], tau[2:]
-    world.place_on(item.name, "table", *object_xy)
+    item = world.objects[OBJECT]
+    (x, y, yaw), place = values["object"], values["place"]
+    world.place_on(item.name, "table", x, y, np.radians(yaw))
     executor = Executor(world)
+    settings = executor.reference_settings
     try:
-        settings = executor.reference_settings
-        pick = plan_pick(executor.arm, executor.position, item, object_xy, plan, settings)
-        put = plan_place(executor.arm, pick.lifted, item, place_xy, plan, settings)
+        pick = plan_pick(
+            executor.arm, executor.position, item, (x, y), plan, settings, yaw=np.radians(yaw), then=place
+        )
     except PlanningError as error:
         return _failure(world, "plan", str(error))
     monitor = _BoxMonitor(world, item.name, executor)
-    for step, planned in [(step, pick) for step in PICK_STEPS] + [(step, put) for step in PLACE_STEPS]:
+    steps = [(step, pick) for step in PICK_STEPS] + [(step, None) for step in PLACE_STEPS]
+    for step, planned in steps:
+        if step is PLACE_STEPS[0]:  # planned with the object in the hand, as it was grasped
+            try:
+                put = plan_place(executor.arm, executor.position, item, place, plan, settings)
+            except PlanningError as error:
+                return _failure(world, "plan", str(error), monitor)
+        planned = planned or put
         # Primitives start where the previous motion left the robot.
         motion = executor.run(step_motion(step, planned, item.name), timeout=15.0, observe=monitor.update)
         if motion.status is not MotionStatus.SUCCEEDED:
@@ -130,7 +151,7 @@ def run_episode(world: World, item: GraspableObject, tau: np.ndarray, plan: Pick
             if not lifted(world, executor.hand, item.name):
                 return _failure(world, step.name, "the box was not lifted", monitor)
             monitor.grasped = True
-    placed = placement(world, item.name, place_xy, monitor.update)
+    placed = placement(world, item.name, place[:2], monitor.update, yaw=np.radians(place[2]))
     violations = tuple(limit_violations(executor.log, executor))
     return PickPlaceDetail(
         placed.success,
