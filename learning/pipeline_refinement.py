@@ -240,7 +240,6 @@ def _plannable(task, tau: np.ndarray, blocks: BuildingBlocks, seed: int) -> np.n
             task.input(tau)
             return tau
         except PlanningError as error:
-            if attempt == REDRAWS:
-                raise LearnError(f"no training task of {blocks.task} could be planned: {error}") from None
+            failure = error
             tau = blocks.draw(1, child_seed(seed, attempt))[0]
-    return tau
+    raise LearnError(f"no training task of {blocks.task} could be planned: {failure}")
