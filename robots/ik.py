@@ -19,8 +19,8 @@ random configurations and keeps the best result. An unreachable target is not an
 
 from __future__ import annotations
 
-import functools
 import math
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -207,10 +207,20 @@ def _weights(joint_weights, size: int) -> np.ndarray:
 RANGE_INSET = 3e-3
 
 
-@functools.lru_cache(maxsize=64)
+# Per robot (for as long as it lives: a robot holds its compiled model, megabytes), per groups: _joints.
+_JOINTS: weakref.WeakKeyDictionary[Robot, dict] = weakref.WeakKeyDictionary()
+
+
 def _joints(robot: Robot, groups: tuple[str, ...]) -> tuple[np.ndarray, ...]:
     """qpos and dof indices and the limits of the groups' joints, in their order (computed once per robot
     and groups: planning solves many IK problems for one arm)."""
+    known = _JOINTS.setdefault(robot, {})
+    if groups not in known:
+        known[groups] = _joint_arrays(robot, groups)
+    return known[groups]
+
+
+def _joint_arrays(robot: Robot, groups: tuple[str, ...]) -> tuple[np.ndarray, ...]:
     members = [robot.group(name) for name in groups]
     qpos, dofs, lower, upper = (
         np.concatenate([getattr(g, field) for g in members])

@@ -61,6 +61,15 @@ class Arm:
         self._scratch = mujoco.MjData(model)
         root = model.body_rootid[model.jnt_bodyid[model.joint(self.joints[0]).id]]
         self._robot_body = model.body_rootid == root  # per body: part of the robot
+        # The geoms the arm's joints move, and the furniture (the world body's own geoms), that collide.
+        moved = np.zeros(model.nbody, dtype=bool)
+        moved[[model.jnt_bodyid[model.joint(name).id] for name in self.joints]] = True
+        for body in range(1, model.nbody):  # parents come before their children
+            moved[body] |= moved[model.body_parentid[body]]
+        colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+        self._moved_geoms = np.flatnonzero(moved[model.geom_bodyid] & colliding)
+        self._furniture = np.flatnonzero((model.geom_bodyid == 0) & colliding)
+        self._fromto = np.empty(6)
 
     @property
     def dofs(self) -> int:
@@ -139,16 +148,28 @@ class Arm:
 
     # -- collisions ----------------------------------------------------------------------------------------
 
-    def collisions(self, joint_positions: np.ndarray, allowed: Sequence[str] = ()) -> list[str]:
+    def collisions(
+        self, joint_positions: np.ndarray, allowed: Sequence[str] = (), margin: float = 0.0
+    ) -> list[str]:
         """Contacts the robot would have with the arm at ``joint_positions`` and everything else as it is
-        now: "body1/body2" for each pair, except pairs with a body named in ``allowed``."""
+        now: "body1/body2" for each pair, except pairs with a body named in ``allowed``. With a ``margin``
+        (m), the parts the arm moves also collide with the furniture (the world's fixed geoms: table, shelf)
+        closer than that: room for how far a fast move's tracking strays from its commanded path."""
         model, scratch = self.world.model, self._pose_scratch(self._configuration(joint_positions))
         mujoco.mj_collision(model, scratch)
         contacts = scratch.contact
         bodies = model.geom_bodyid[contacts.geom]  # (ncon, 2)
         excused = np.isin(bodies, [model.body(name).id for name in allowed]).any(axis=1)
         found = (contacts.dist < 0) & self._robot_body[bodies].any(axis=1) & ~excused
-        return ["/".join(model.body(b).name for b in pair) for pair in bodies[found]]
+        hits = ["/".join(model.body(b).name for b in pair) for pair in bodies[found]]
+        if margin > 0 and not hits:
+            hits = [
+                f"{model.body(model.geom_bodyid[part]).name}/{model.geom(furniture).name or 'world'}"
+                for part in self._moved_geoms
+                for furniture in self._furniture
+                if mujoco.mj_geomDistance(model, scratch, part, furniture, margin, self._fromto) < margin
+            ]
+        return hits
 
     # -- limits --------------------------------------------------------------------------------------------
 

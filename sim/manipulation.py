@@ -43,6 +43,13 @@ CYLINDER_GRASPS = np.radians(np.arange(0.0, 360.0, 30.0))
 LIFT = 0.06  # m a held object is lifted at least (another hand lets go of it below)
 LIFTS = 4  # heights tried for a lift, from carrying height down to LIFT
 CARRY_RAISE = 0.08  # m higher a carry ends above its target where the direct one dips over the shelf
+# m a reach keeps from the furniture: a fast joint-space move's hand strays up to 2.3 cm from its commanded
+# path (AILA, measured), and a reach 1.5 cm from the shelf's edge caught a finger on it.
+REACH_MARGIN = 0.03
+# rad an object may stand turned in the hand from the grasp planned (it settles as the fingers close): a
+# grasp is chosen for a placement reachable at these turns too, not only at the planned one.
+HELD_SLACK = np.radians(2.0)
+RESTING = 0.01  # m from its height standing on the table that an object's centre counts as standing there
 
 
 def grasp_yaws(item: GraspableObject, arm: Arm, yaw: float = 0.0) -> np.ndarray:
@@ -76,11 +83,15 @@ def place_yaws(item: GraspableObject, place_yaw: float, held: float) -> np.ndarr
 
 
 def _can_set_down(arm: Arm, item: GraspableObject, target: Target, held: float, heights) -> bool:
-    """Whether the hand reaches, collision-free, the poses above and at ``target`` (at ``heights``) at one
-    of the yaws that set ``item`` down at the target's yaw, held turned by ``held``."""
+    """Whether the hand reaches, collision-free, the poses over ``target`` at ``heights`` (each solved from
+    the one before) at one of the yaws that set ``item`` down at the target's yaw, held turned by
+    ``held`` (give or take :data:`HELD_SLACK`)."""
     positions = [np.r_[target.xy, z] for z in heights]
     return any(
-        _pose_configurations(arm, arm.home, positions, top_down(yaw), (item.name,)) is not None
+        all(
+            _pose_configurations(arm, arm.home, positions, top_down(yaw + turn), (item.name,)) is not None
+            for turn in (0.0, -HELD_SLACK, HELD_SLACK)
+        )
         for yaw in place_yaws(item, target.yaw, held)
     )
 
@@ -349,41 +360,61 @@ def plan_pick(
     then=None,
 ) -> PickMotions:
     """Motions that grasp ``item`` at ``object_xy`` (standing on the table) or ``(x, y, z)`` (its centre
-    at height z, e.g. held by another hand), turned by ``yaw`` (rad), from the configuration ``start`` and
-    lift it to carrying height (an object in the air at least :data:`LIFT` up). Of the grasps that fit
-    (:func:`grasp_yaws`) the one that keeps farthest from the joint limits. The reach is a point-to-point
+    at height z: at its resting height it stands on the table, else e.g. another hand holds it), turned by
+    ``yaw`` (rad), from the configuration ``start`` and lift it to carrying height (an object in the air at
+    least :data:`LIFT` up). Of the grasps that fit (:func:`grasp_yaws`) the one that keeps farthest from the
+    joint limits, its reach clear of the furniture. The reach is a point-to-point
     move, or a joint-space primitive learned from people moved to this reach's end points
     (:func:`~besman.sim.primitives.shaped`): ``reach``, or ``reach(start, end)`` the primitive for them.
 
     ``then``: the target (:meth:`Target.read`) of the placement the grasp is for. Where the target has a
     yaw, the grasp is one from which the object can be set down turned to it (a box held across one pair
     of faces stands at the place's yaw for two hand yaws only, which the wrist may not reach there), if
-    there is such a grasp."""
+    there is such a grasp; and one from where it is lifted, the object can be carried (point to point) to
+    the target and set down there."""
     where = np.asarray(object_xy, dtype=float)
     object_xy = where[:2]
     grasp_z, carry_z, _ = heights(arm.world, item, plan)
-    if len(where) == 3:
+    # On the table (given as x, y or at its resting height, as perceived), or held in the air.
+    standing = len(where) == 2 or abs(where[2] + plan.grasp_height - grasp_z) < RESTING
+    if not standing:
         grasp_z = where[2] + plan.grasp_height
         carry_z = max(carry_z, grasp_z + LIFT)
-    yaws = _grasps_for(arm, item, yaw, then, plan)
+    target = None if then is None else then if isinstance(then, Target) else Target.read(then)
+    yaws = _grasps_for(arm, item, yaw, target, plan)
     # Lifted to carrying height, or where the wrist cannot reach that high at the yaw the object needs, as
     # high as it can, at least LIFT up (the carry then rises over the shelf: the lower it starts, the more
     # likely it dips).
     lifts = np.linspace(carry_z, grasp_z + LIFT, LIFTS) if carry_z > grasp_z + LIFT else [carry_z]
-    reaches = {}  # per leg its reach
+    reaches, missing = {}, []  # per leg its reach; legs that passed some checks, with those they missed
 
-    def reached_clear(leg: _Leg) -> bool:
-        """The reach to the leg's first configuration, if on the way to an object on the table it touches
-        nothing (the object least of all: the joint-space reach comes to it from the side; one held in the
-        air by another hand is the tree's to keep apart)."""
-        move = _big_move("reach", reach, start, leg.configurations[0], arm)
-        path = joint_reference(arm, move, at_rest(start), settings).positions
-        standing = len(where) == 2
-        if standing and any(arm.collisions(q) for q in path[:: max(1, len(path) // 30)]):
+    def placeable(lifted: np.ndarray) -> bool:
+        try:  # the object turned in the hand as planned: as it stands now against the hand lifted
+            plan_place(arm, lifted, item, target, plan, settings)
+        except PlanningError:
             return False
-        reaches[id(leg)] = move
         return True
 
+    def passes(leg: _Leg) -> bool:
+        """Whether the leg passes every check: on the way to an object on the table its reach touches
+        nothing (the object least of all: the joint-space reach comes to it from the side; one held in the
+        air by another hand is the tree's to keep apart) and keeps :data:`REACH_MARGIN` from the
+        furniture, and from where it lifts the object, it can be carried to ``then`` and set down there.
+        A leg that misses only the margin or the placement is kept in ``missing``."""
+        move = _big_move("reach", reach, start, leg.configurations[0], arm)
+        path = joint_reference(arm, move, at_rest(start), settings).positions
+        path = path[:: max(1, len(path) // 30)]
+        near = standing and any(arm.collisions(q, margin=REACH_MARGIN) for q in path)
+        if near and any(arm.collisions(q) for q in path):
+            return False
+        reaches[id(leg)] = move
+        missed = (target is not None and not placeable(leg.configurations[-1]), near)
+        if any(missed):
+            missing.append((missed, leg))
+        return not any(missed)
+
+    # Lifted as high as it passes; where no leg passes every check, the first that misses the least (the
+    # placement before the margin).
     for lift in lifts:
         leg = _first_within_range(
             plan_leg(
@@ -395,12 +426,14 @@ def plan_pick(
                 allowed=(item.name,),
                 settings=settings,
                 yaws=yaws,
-                accept=reached_clear,
+                accept=passes,
             )
             for approach in _clearances(item, plan)
         )
         if leg is not None:
             break
+    if leg is None and missing:
+        leg = min(missing, key=lambda found: found[0])[1]
     if leg is None:
         raise PlanningError("no reachable, collision-free top-down grasp of the object")
     return PickMotions(reaches[id(leg)], *leg.primitives, leg.configurations[-1])
@@ -437,14 +470,18 @@ def _first_within_range(legs) -> _Leg | None:
     return first
 
 
-def _grasps_for(arm: Arm, item: GraspableObject, yaw: float, then, plan: PickPlacePlan) -> np.ndarray:
-    """The grasp yaws of ``item`` standing at ``yaw`` from which it can be set down at the target ``then``
-    (all that fit if none can, or without a target's yaw)."""
+def _grasps_for(
+    arm: Arm, item: GraspableObject, yaw: float, target: Target | None, plan: PickPlacePlan
+) -> np.ndarray:
+    """The grasp yaws of ``item`` standing at ``yaw`` from which it can be set down at ``target`` (all
+    that fit if none can, or without a target's yaw)."""
     yaws = grasp_yaws(item, arm, yaw)
-    target = None if then is None else then if isinstance(then, Target) else Target.read(then)
     if target is None or target.yaw is None or yaw_symmetry(item) == 0.0:
         return yaws
-    place = _place_heights(arm.world, item, plan, target)
+    carry_z, place_z = _place_heights(arm.world, item, plan, target)
+    # Above the target, at it, and the lowest retreat from it (the wrist may reach the carry's height at
+    # a yaw and not the retreat's, a few cm higher).
+    place = (carry_z, place_z, place_z + min(_clearances(item, plan)))
     fitting = [grasp for grasp in yaws if _can_set_down(arm, item, target, yaw - grasp, place)]
     return np.array(fitting) if fitting else yaws
 

@@ -33,8 +33,8 @@ class JerkLimitedStream:
         self._input.max_velocity = self.max_velocity.tolist()
         self._input.max_acceleration = self.max_acceleration.tolist()
         self._input.max_jerk = self.max_jerk.tolist()
-        # Ruckig accepts a target velocity v only with room to stop accelerating:
-        # |a| <= sqrt(2 j (v_max - |v|)).
+        # Ruckig accepts a target velocity v only with room to stop accelerating after it, or to have
+        # been slowing down to it: |a| <= sqrt(2 j (v_max - |v|)) whichever way a points.
         self._velocity_bound = 0.99 * self.max_velocity
         self._acceleration_bound = 0.999 * self.max_acceleration
         self.reset(np.clip(np.zeros(self.dofs), self.lower, self.upper))
@@ -90,8 +90,7 @@ class JerkLimitedStream:
         velocity = np.clip(velocity, -self._velocity_bound, self._velocity_bound)
         acceleration = np.clip(acceleration, -self._acceleration_bound, self._acceleration_bound)
         headroom = np.sqrt(2.0 * self.max_jerk * np.maximum(self._velocity_bound - np.abs(velocity), 0.0))
-        speeding_up = np.sign(acceleration) == np.sign(velocity)
-        acceleration = np.where(speeding_up, np.clip(acceleration, -headroom, headroom), acceleration)
+        acceleration = np.clip(acceleration, -headroom, headroom)
         at_limit = clipped != position  # a joint held at its limit stops there
         return clipped, np.where(at_limit, 0.0, velocity), np.where(at_limit, 0.0, acceleration)
 

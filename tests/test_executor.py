@@ -178,3 +178,31 @@ def test_a_run_in_chunks_ends_on_the_cycle_and_in_the_state_it_does_cycle_by_cyc
         assert len(chunked.log) == len(by_cycle.log) == decided
         np.testing.assert_array_equal(chunked.world.data.qpos, by_cycle.world.data.qpos)
         np.testing.assert_array_equal(chunked.world.data.qvel, by_cycle.world.data.qvel)
+
+
+def test_a_target_slowing_down_to_near_the_velocity_limit_is_one_ruckig_accepts():
+    """A reference sample at 99 % of a joint's speed limit, its acceleration slowing it down: just before,
+    it went faster than the limit, which Ruckig refuses as a target (seed 188's retreat failed so); the
+    sample is made feasible by bounding the acceleration whichever way it points."""
+    import ruckig
+
+    from besman.sim.streaming import WORKING, JerkLimitedStream
+
+    stream = JerkLimitedStream([-1.0], [1.0], [0.5], [4.0], [10.0], 0.002)
+    stream.reset([0.0])
+    position, velocity, acceleration = stream.feasible(np.array([-0.1]), np.array([-0.495]), np.array([0.56]))
+    assert abs(velocity[0]) + acceleration[0] ** 2 / (2 * 10.0) <= 0.5
+    assert stream.track_feasible(position.tolist(), velocity.tolist(), acceleration.tolist()) in WORKING
+    assert ruckig.Result.ErrorInvalidInput not in WORKING
+
+
+def test_a_margin_makes_the_furniture_near_the_moving_arm_a_collision(executor):
+    """At home nothing touches; within 30 cm of the moving arm is the table, reported with a margin that
+    large; the rover's base, 4 cm above the floor but not moved by the arm, never is."""
+    arm = executor.arm
+    home = arm.home
+    assert arm.collisions(home) == []
+    assert arm.collisions(home, margin=0.001) == []
+    near = arm.collisions(home, margin=0.3)
+    assert near and all(hit.split("/")[1] in ("table", "shelf") for hit in near), near
+    assert not any("Rover_base" in hit for hit in arm.collisions(home, margin=0.05))

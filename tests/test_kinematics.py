@@ -35,6 +35,20 @@ def test_forward_kinematics_rejects_bad_configurations(aila):
         robots.forward_kinematics(aila, aila.model.qpos0, "nose")
 
 
+def test_inverse_kinematics_keeps_no_robot_alive():
+    """What a solve remembers about a robot (its joints' indices and limits) goes with the robot: a run per
+    task in one process (a benchmark's hundreds) grew by a compiled model per run while a cache held on."""
+    import gc
+    import weakref
+
+    robot = robots.load("aila")
+    assert robots.solve_ik(robot, "right_arm", [0.5, -0.2, 0.9], DOWN).success
+    alive = weakref.ref(robot)
+    del robot
+    gc.collect()
+    assert alive() is None
+
+
 def test_ik_reaches_a_grid_of_top_down_grasps_above_a_table(aila):
     """20 grasp poses over a table in front of the robot, gripper down: < 1 mm and < 1 degree."""
     arm = aila.group("right_arm")

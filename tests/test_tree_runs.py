@@ -155,14 +155,14 @@ def test_without_a_seed_a_run_takes_the_tasks_default_configuration():
 
 @pytest.mark.slow
 def test_grasp_then_place_succeeds_in_40_random_configurations():
-    """37 of 40 seeded configurations drawn from the task's bounds (any object and place yaw, boxes and
+    """39 of 40 seeded configurations drawn from the task's bounds (any object and place yaw, boxes and
     cylinders of every size), with real contact grasps, succeed by the task's rule (the tree succeeds and the
-    object stands upright on the shelf within 2 cm and 5 deg): what was measured on 2026-11-26 (seeds 24 and
-    two more knock the object off in planning that passed; benchmarks/learned.py's 100 held-out tau gave
-    99). The issue's 98 % is not established on this sample."""
+    object stands upright on the shelf within 2 cm and 5 deg). Measured on 2026-11-26: 40 of 40 (seeds 24,
+    25 and 28 failed before the grasp was chosen for a placement that plans from its lift and the reach kept
+    its margin from the shelf); 237 of seeds 0-239."""
     summaries = [run(tree=TREE, seed=seed) for seed in range(40)]
     successes = [s for s in summaries if s.success]
-    assert len(successes) >= 37, [(i, s.status, s.outcome) for i, s in enumerate(summaries) if not s.success]
+    assert len(successes) >= 39, [(i, s.status, s.outcome) for i, s in enumerate(summaries) if not s.success]
     assert all(s.status == "SUCCESS" and s.measurements["placement_error_m"] < 0.02 for s in successes)
     assert all(s.measurements["tilt_deg"] < 10 for s in successes)
 
