@@ -10,6 +10,8 @@ boundary F1), :mod:`besman.learning.segmentation_plot`,
 :mod:`besman.learning.labelling` (building blocks: clustering, few-shot 1-NN),
 :mod:`besman.learning.imitation` (a Cartesian-DMP primitive per building block),
 :mod:`besman.learning.policy_search` (CMA-ES and xNES refining theta on batched rollouts),
+:mod:`besman.learning.sequences` (a task's blocks refined together on whole-task rollouts, each credited with
+its cost-to-go, or block by block),
 :mod:`besman.learning.contextual_search` (C-REPS and contextual CMA-ES: one policy over all tasks),
 :mod:`besman.learning.template_selection` (a template's kernel by leave-one-out outcomes),
 :mod:`besman.learning.retargeting` (a person's movement onto AILA's arm), :mod:`besman.learning.pipeline`
@@ -37,6 +39,7 @@ from besman.learning.labelling import (
 from besman.learning.policy_search import CMAES, XNES, WarmStart, make_optimizer, policy_search
 from besman.learning.preprocessing import SmoothingConfig, hand_pose, resample, smooth
 from besman.learning.segmentation import Segmentation, segment
+from besman.learning.sequences import SequenceResult, refine_sequence
 
 __all__ = [
     "CMAES",
@@ -51,6 +54,7 @@ __all__ = [
     "SegmentModel",
     "Segmentation",
     "SegmentationPrior",
+    "SequenceResult",
     "SmoothingConfig",
     "WarmStart",
     "cluster",
@@ -63,6 +67,7 @@ __all__ = [
     "load",
     "make_optimizer",
     "policy_search",
+    "refine_sequence",
     "resample",
     "segment",
     "segments_of",
