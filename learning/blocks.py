@@ -34,6 +34,13 @@ class BuildingBlocks:
         refinement: ``refinement(block, shape file)``: the task config (``build()`` makes a
             :class:`~besman.sim.evaluation.BatchedTask` with ``input(tau)``) whose rollouts refine the
             block's primitive.
+        object: the object the blocks grasp and place (its name in the task's world): what the tree learned
+            from the recordings holds (:mod:`besman.trees.learned`).
+        target: the blackboard key of where the object goes (the task's target value, ``/task/...``).
+        sequence: ``sequence(shape files)`` (one per block, in order): the config (``build()`` makes a
+            batched task of whole-task rollouts with ``start()``, ``primitive_thetas(parts)`` and
+            ``subgoals(parts)``, details with per-block ``costs``) that refines the blocks together
+            (:mod:`besman.learning.pipeline_sequence`); None if the task has none.
     """
 
     task: str
@@ -47,3 +54,6 @@ class BuildingBlocks:
     start: Callable[[Any, str, Any], Any]
     input_names: tuple[str, ...]
     refinement: Callable[[str, str], Any]
+    object: str
+    target: str
+    sequence: Callable[[tuple[str, ...]], Any] | None = None

@@ -15,6 +15,11 @@ label them, where each begins and how a rollout of one is scored), writing each 
    of the task's blocks (``roles``; the task's defaults for clustering and for examples). Per recording, a
    block's instance is the longest run of consecutive segments with its label (a movement the segmentation
    split in two is one instance).
+   **Structure** (``work/structure.json``, :mod:`besman.learning.task_structure`): the order of the
+   blocks in the recordings, whether the object is held during each (its marker moves with the hand), so
+   where the hand closes and opens between them and what each block ends in (holding, placed): what the
+   task's tree is assembled from (``besman learn`` writes it as ``POOL/tree.yaml``,
+   :mod:`besman.trees.learned`).
 4. **Imitation and retargeting** (:mod:`besman.learning.pipeline_refinement`; ``work/imitated/``,
    ``work/shapes/``): one Cartesian DMP per block from all its instances (:func:`~besman.learning.imitate`),
    mapped into the robot's workspace by the map that sends the goals of the task's two anchor blocks onto
@@ -24,7 +29,9 @@ label them, where each begins and how a rollout of one is scored), writing each 
    rollouts of that block alone in MuJoCo, through the Ruckig executor, followed by what decides its
    success (the task's rollouts and reward). Each task's search is seeded by the run's seed, its block and
    its index (:func:`~besman.skills.seeds.child_seed`), so an interrupted run that resumes gets the same
-   results.
+   results. With ``refinement="sequence"`` (``work/refined/sequence-<k>.json``) every block's forcing
+   weights and subgoals are refined together instead, per training task, on whole-task rollouts with the
+   task's perturbations, each block credited with its cost-to-go (:mod:`besman.learning.pipeline_sequence`).
 6. **Templates**: one skill template per block over its tau (the K refined thetas; the shared-kernel model
    with its default kernel, fixed before any learn, and the refinement's spread as the prior exploration of
    the forcing weights, which are all that was searched), for ``<task>/<robot>``, stored in the pool with
@@ -52,9 +59,18 @@ from besman.learning.pipeline_labels import (
     recordings,
     segment_recordings,
 )
-from besman.learning.pipeline_record import LearnError, LearnSettings, claim_output, learn_record
+from besman.learning.pipeline_record import (
+    SCHEMA_VERSION,
+    LearnError,
+    LearnSettings,
+    claim_output,
+    learn_record,
+    write_json,
+)
 from besman.learning.pipeline_refinement import block_shapes, refine_blocks, store_templates
-from besman.skills.storage import sha256
+from besman.learning.pipeline_sequence import refine_sequences
+from besman.learning.task_structure import TaskStructure, recorded_blocks, task_structure
+from besman.skills.storage import read_json, sha256
 from besman.skills.writer_lock import WriterLock
 
 __all__ = ["LearnError", "LearnResult", "LearnSettings", "learn"]
@@ -63,11 +79,13 @@ DEFAULT_SETTINGS = LearnSettings()
 
 @dataclass(frozen=True)
 class LearnResult:
-    """What a run produced: the pool, the per-block training results and the figures."""
+    """What a run produced: the pool, the per-block training results, the task's structure as the
+    recordings show it and the figures."""
 
     pool: Path
     templates: tuple[str, ...]
     refined: dict[str, list[dict]]
+    structure: TaskStructure
     figures: tuple[Path, ...]
 
 
@@ -101,12 +119,31 @@ class _Run:
             self.work / "labels.json",
         )
 
+    def structure(self, instances: dict[str, list[dict]]) -> TaskStructure:
+        cache = self.work / "structure.json"
+        if cache.is_file():
+            return TaskStructure.from_dict(read_json(cache, LearnError)["structure"])
+        recorded = []
+        for path, demo in zip(self.files, self.demos, strict=True):
+            found = {
+                b: (i["start"], i["end"])
+                for b, runs in instances.items()
+                for i in runs
+                if i["file"] == path.name
+            }
+            recorded.append(recorded_blocks(demo, found))
+        structure = task_structure(recorded, self.blocks.names)
+        write_json(cache, {"schema_version": SCHEMA_VERSION, "structure": structure.as_dict()})
+        return structure
+
     def shapes(self, instances: dict[str, list[dict]]) -> dict[str, Path]:
         demos = {path.name: demo for path, demo in zip(self.files, self.demos, strict=True)}
         return block_shapes(instances, demos, self.blocks, self.settings.n_weights, self.work)
 
     def refine(self, shapes: dict[str, Path]) -> dict[str, list[dict]]:
-        return refine_blocks(shapes, self.blocks, self.settings, self.work / "refined", self.shown)
+        if self.settings.refinement == "blocks":
+            return refine_blocks(shapes, self.blocks, self.settings, self.work / "refined", self.shown)
+        return refine_sequences(shapes, self.blocks, self.settings, self.work / "refined", self.shown)
 
     def templates(self, shapes: dict[str, Path], refined: dict[str, list[dict]]) -> tuple[str, ...]:
         return store_templates(self.out, shapes, refined, self.blocks, self.settings, self.record)
@@ -138,10 +175,11 @@ def learn(
         claim_output(run.out, run.record, force)
         movements = run.segmentations()
         instances = run.labels(movements)
+        structure = run.structure(instances)
         shapes = run.shapes(instances)
         refined = run.refine(shapes)
         templates = run.templates(shapes, refined)
         from besman.learning.pipeline_plots import write_figures  # matplotlib only when it is needed
 
         figures = write_figures(run.out, run.demos, run.files, movements, instances, refined)
-    return LearnResult(run.out, templates, refined, figures)
+    return LearnResult(run.out, templates, refined, structure, figures)

@@ -31,6 +31,9 @@ class LearnError(BesmanError):
     """The pipeline cannot run on this input or output; the message names the file, folder or setting."""
 
 
+REFINEMENTS = ("blocks", "sequence", "sequence-by-block")
+
+
 @dataclass(frozen=True)
 class LearnSettings:
     """What a run learns and how (recorded in ``work/learn.json``).
@@ -46,6 +49,10 @@ class LearnSettings:
             examples).
         n_weights: forcing weights per joint of the retargeted primitives.
         spread: CMA-ES's initial standard deviation (theta units: 0.1 rad per unit).
+        refinement: how the blocks are refined: ``"blocks"`` each alone, from the planned starts, for its
+            own reward; ``"sequence"`` all together on whole-task rollouts with perturbations, each block
+            credited with its cost-to-go; ``"sequence-by-block"`` on the same rollouts, one block after
+            the other for its own cost (the comparison); see :mod:`besman.learning.pipeline_sequence`.
     """
 
     tasks: int = 8
@@ -57,6 +64,7 @@ class LearnSettings:
     roles: tuple[tuple[str, str], ...] = ()
     n_weights: int = 6
     spread: float = 0.1
+    refinement: str = "blocks"
 
     def role_labels(self, blocks: BuildingBlocks) -> dict[str, str]:
         """The label that plays each block: the task's default for how the recordings are labelled, unless
@@ -73,6 +81,10 @@ class LearnSettings:
         for name, low in (("tasks", 2), ("budget", 1), ("n_blocks", 3), ("n_weights", 2)):
             if getattr(self, name) < low:
                 raise LearnError(f"{name} must be at least {low}, got {getattr(self, name)}")
+        if self.refinement not in REFINEMENTS:
+            raise LearnError(f"refinement must be one of {', '.join(REFINEMENTS)}, got {self.refinement!r}")
+        if self.refinement != "blocks" and blocks.sequence is None:
+            raise LearnError(f"task {blocks.task} has no whole-task rollouts: refinement must be 'blocks'")
         if not self.spread > 0:
             raise LearnError(f"spread must be positive, got {self.spread}")
         if not self.examples:
@@ -89,6 +101,8 @@ class LearnSettings:
         document = {"robot": blocks.robot, **dataclasses.asdict(self)}
         document["examples"] = list(self.examples)
         document["roles"] = self.role_labels(blocks)
+        if self.refinement == "blocks":  # the records of pools learned before there was a choice
+            del document["refinement"]
         return document
 
 

@@ -141,7 +141,7 @@ def store_templates(
             inputs,
             np.array([run["theta"] for run in runs]),
             input_box(blocks.input_names, inputs),
-            prior_spread=np.where(_forcing_weights(prototype), settings.spread, 0.0),
+            prior_spread=np.where(forcing_weights(prototype), settings.spread, 0.0),
             seed=settings.seed,
             task=f"{blocks.task}/{robots.describe(blocks.robot).name}",
             provenance={
@@ -178,7 +178,7 @@ def _refine_task(
     """CMA-ES over the forcing weights of ``shape`` for one tau by rollouts of ``task`` (the shape's
     thetas); the best theta, its outcome (the rollout's details) and the curve."""
     theta0 = shape.theta.copy()
-    weights = _forcing_weights(shape)
+    weights = forcing_weights(shape)
     outcomes = {}
 
     def objective(candidates: np.ndarray, owners: np.ndarray) -> np.ndarray:
@@ -207,7 +207,7 @@ def _refine_task(
     }
 
 
-def _forcing_weights(shape: MovementPrimitive) -> np.ndarray:
+def forcing_weights(shape: MovementPrimitive) -> np.ndarray:
     """A mask of theta's forcing weights (each DMP dimension's N weights, not its goal and goal velocity):
     what refinement searches."""
     mask = np.zeros((shape.dmp.n_dims, shape.dmp.n_weights + 2), dtype=bool)

@@ -141,7 +141,7 @@ def step_motion(step: Step, planned: PickMotions | PlaceMotions, item: str) -> M
     """The motion that runs a pick-and-place ``step``: the ``planned`` primitive it follows, or its gripper
     action on the object ``item``."""
     if step.move is not None:
-        return FollowPrimitive(getattr(planned, step.move), name=step.name)
+        return FollowPrimitive(getattr(planned, step.move), step.name, item if step.guarded else None)
     closing = step.gripper == "close"
     return GripperMotion(step.name, opening=0.0 if closing else None, expect_grasp=closing, grasp_object=item)
 
@@ -227,16 +227,8 @@ def rollout(world: World, start: BlockStart, shape: MovementPrimitive) -> BlockO
     except ValueError as error:  # a primitive that cannot start (e.g. of the wrong size)
         motion.finish(MotionStatus.FAILED, str(error))
     # The block's own cycles: up to the one that decided it (a failure's chunk may have run on).
-    cycles = motion.ended
-    commanded = executor.log.positions[:cycles].copy()
     allowed = (item.name,) if start.block == "carry" else ()
-    measures = dict(
-        duration=(executor.log.times[cycles - 1] if cycles else began) - began,
-        **hand_measures(arm, commanded, executor.config.control_period),
-        limit_margin=arm.limit_margin(commanded) if len(commanded) else 0.0,
-        end_margin=arm.limit_margin(np.array([start.start, start.goal])),
-        collisions=sum(bool(arm.collisions(q, allowed)) for q in commanded[::COLLISION_STRIDE]),
-    )
+    measures = motion_measures(executor, 0, motion.ended, began, (start.start, start.goal), allowed)
     if motion.status is not MotionStatus.SUCCEEDED:
         return BlockOutcome(False, f"{start.block}: {motion.message}", **measures)
     if start.block == "carry" and not executor.hand.holds(item.name):
@@ -247,6 +239,23 @@ def rollout(world: World, start: BlockStart, shape: MovementPrimitive) -> BlockO
             return BlockOutcome(False, f"{motion.name} after the {start.block}: {motion.message}", **measures)
     success, message, error = judge_block(world, executor.hand, start.block, start.place)
     return BlockOutcome(success, message, **measures, placement_error=error)
+
+
+def motion_measures(
+    executor: Executor, first: int, last: int, began: float, ends: tuple, allowed: tuple[str, ...]
+) -> dict[str, float]:
+    """The measures of :class:`BlockOutcome` of a block's motion: the executor's logged commands
+    ``first`` to ``last`` (cycles), begun at time ``began``, between the configurations ``ends``; touching
+    ``allowed`` objects is no collision."""
+    arm = executor.arm
+    commanded = executor.log.positions[first:last].copy()
+    return dict(
+        duration=(executor.log.times[last - 1] if last > first else began) - began,
+        **hand_measures(arm, commanded, executor.config.control_period),
+        limit_margin=arm.limit_margin(commanded) if len(commanded) else 0.0,
+        end_margin=arm.limit_margin(np.array(ends)),
+        collisions=sum(bool(arm.collisions(q, allowed)) for q in commanded[::COLLISION_STRIDE]),
+    )
 
 
 def judge_block(world: World, hand, block: str, place) -> tuple[bool, str, float | None]:

@@ -42,6 +42,15 @@ class Hand:
         first, second = (bool(np.isin(side, touching_geoms).any()) for side in self.pads)
         return first, second
 
+    def bumps(self, name: str) -> bool:
+        """Whether any part of the robot touches the object ``name``."""
+        model, data = self.world.model, self.world.data
+        bodies = model.geom_bodyid[data.contact.geom]  # (ncon, 2)
+        on_object = bodies == self._body(name)
+        others = np.r_[bodies[on_object[:, 1], 0], bodies[on_object[:, 0], 1]]
+        robot = model.body_rootid[model.site_bodyid[self.site]]
+        return bool((model.body_rootid[others] == robot).any())
+
     def holds(self, name: str | None) -> bool:
         """Both pads touch the object and it moves with the hand."""
         if name is None or not all(self.touching(name)):

@@ -13,7 +13,7 @@ scripted pick-and-place task execute them the same way. A plan that cannot be ma
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import astuple, dataclass, fields
+from dataclasses import astuple, dataclass, fields, replace
 
 import numpy as np
 
@@ -96,6 +96,17 @@ def _can_set_down(arm: Arm, item: GraspableObject, target: Target, held: float, 
     )
 
 
+# The plan's valid ranges (m, s).
+PLAN_RANGES = {
+    "approach_height": (0.03, 0.3),
+    "clearance": (0.0, 0.3),
+    "grasp_height": (-0.03, 0.03),
+    "release_height": (0.0, 0.05),
+    "carry_time": (0.3, np.inf),
+    "descend_time": (0.3, np.inf),
+}
+
+
 @dataclass(frozen=True)
 class PickPlacePlan:
     """The parameters of the scripted plan; theta is these numbers in this order."""
@@ -116,22 +127,23 @@ class PickPlacePlan:
                 f"({', '.join(f.name for f in fields(cls))}), got shape {theta.shape}"
             )
         plan = cls(*(float(v) for v in theta))
-        if not (
-            0.03 <= plan.approach_height <= 0.3
-            and 0.0 <= plan.clearance <= 0.3
-            and plan.carry_time >= 0.3
-            and plan.descend_time >= 0.3
-            and abs(plan.grasp_height) <= 0.03
-            and 0.0 <= plan.release_height <= 0.05
-        ):
+        if not all(low <= getattr(plan, name) <= high for name, (low, high) in PLAN_RANGES.items()):
             raise InputError(f"theta is outside the plan's valid ranges: {plan}")
         return plan
 
     def theta(self) -> np.ndarray:
         return np.array(astuple(self))
 
+    def with_subgoals(self, **subgoals: float) -> PickPlacePlan:
+        """This plan with some numbers changed, checked against the valid ranges."""
+        return PickPlacePlan.from_theta(replace(self, **subgoals).theta())
+
 
 DEFAULT_PLAN = PickPlacePlan()
+# The plan's numbers that set where a grasp's and a place's blocks hand over to the next (their subgoals):
+# what a tree's Grasp and Place take, and what refining a whole sequence tunes with each block.
+GRASP_SUBGOALS = ("approach_height", "grasp_height", "descend_time")
+PLACE_SUBGOALS = ("clearance", "release_height", "descend_time")
 
 
 @dataclass(frozen=True)
@@ -284,19 +296,22 @@ class Step:
             or "release".
         holding: the object is in the hand when it starts and must stay there (a slip fails it; trees guard
             it while it runs).
+        guarded: the robot must not touch the object while it runs (a touch fails it: the object is not
+            where it was perceived, and going on would push it over).
     """
 
     name: str
     move: str | None = None
     gripper: str | None = None
     holding: bool = False
+    guarded: bool = False
 
 
 # Grasp: open, move above the object, down around it, close on it, lift it (then check that it is held).
 PICK_STEPS = (
     Step("open", gripper="open"),
     Step("reach", move="reach"),
-    Step("descend", move="descend"),
+    Step("descend", move="descend", guarded=True),
     Step("close", gripper="close"),
     Step("lift", move="lift"),
 )

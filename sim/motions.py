@@ -248,21 +248,40 @@ class FollowReference(Motion):
             )
 
 
+GUARD_CYCLES = 5  # control cycles between the checks of a guarded motion's contacts (10 ms at 500 Hz)
+
+
 class FollowPrimitive(FollowReference):
     """Execute ``primitive``: its joint reference, made when the motion starts in the commanded state.
 
     Starting raises an :class:`~besman.skills.errors.InputError` for a primitive the arm cannot execute (an
-    unreachable Cartesian pose, a joint primitive of the wrong size)."""
+    unreachable Cartesian pose, a joint primitive of the wrong size). With ``untouched`` (an object's name)
+    it is guarded: it fails as soon as the robot touches that object (checked every :data:`GUARD_CYCLES`),
+    as a hand coming down around an object that is not where it was perceived would push it over."""
 
-    def __init__(self, primitive: MovementPrimitive, name: str | None = None) -> None:
+    def __init__(self, primitive: MovementPrimitive, name: str | None = None, untouched: str | None = None):
         super().__init__(name or primitive.name)
         self.primitive = primitive
+        self.untouched = untouched
 
     def begin(self, executor: Executor) -> None:
         self.reference = joint_reference(
             executor.arm, self.primitive, executor.stream.state(), executor.reference_settings
         )
         super().begin(executor)
+
+    def cycles_before_success(self, config: ExecutorConfig) -> int:
+        cycles = super().cycles_before_success(config)
+        return cycles if self.untouched is None else min(cycles, GUARD_CYCLES)
+
+    def judge(self, executor: Executor, chunk: Chunk) -> None:
+        super().judge(executor, chunk)
+        if self.status is MotionStatus.RUNNING and self.untouched and executor.hand.bumps(self.untouched):
+            self.finish(
+                MotionStatus.FAILED,
+                f"the robot touched {self.untouched} on the way: it is not where it was perceived",
+                chunk.first + len(chunk) - 1,
+            )
 
 
 @dataclass

@@ -25,6 +25,7 @@ from besman.robots import Pose, Robot, RobotDescription
 from besman.robots.catalogue import ROBOT
 from besman.robots.description import Board, TabletopLayout
 from besman.sim.objects import GraspableObject
+from besman.sim.perturbations import Perception
 from besman.skills.errors import InputError, UnknownNameError
 from besman.skills.validation import checked, instance, items, number, text
 
@@ -66,6 +67,7 @@ class World:
         self.objects = {item.name: item for item in objects}
         self.surfaces = {surface.name: surface for surface in surfaces}
         self.layout = layout
+        self.perception: Perception | None = None  # exact unless a run perturbs it (sim.perturbations)
         self.reset()
 
     def fork(self) -> World:
@@ -109,6 +111,18 @@ class World:
         return Pose(
             self.data.qpos[address : address + 3].copy(), self.data.qpos[address + 3 : address + 7].copy()
         )
+
+    def perceive(self, name: str) -> Pose:
+        """Object ``name``'s pose as perception sees it now: exact, or with a fresh error of the run's
+        :attr:`perception`."""
+        pose = self.object_pose(name)
+        return pose if self.perception is None else self.perception.look(pose, name)
+
+    def perceived(self, name: str) -> Pose:
+        """Object ``name``'s pose as the latest :meth:`perceive` saw it (its pose now if never perceived or
+        perceived exactly)."""
+        seen = None if self.perception is None else self.perception.last(name)
+        return self.object_pose(name) if seen is None else seen
 
     def set_object_pose(self, name: str, position, quaternion=(1.0, 0.0, 0.0, 0.0)) -> None:
         """Places an object (at rest) and recomputes the derived quantities."""

@@ -21,13 +21,16 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from besman import examples
 from besman.skills.errors import InputError, UnknownNameError
 from besman.skills.tasks import TaskBounds
+
+if TYPE_CHECKING:
+    from besman.sim.perturbations import Perturbations
 
 Observer = Callable[[Any, dict], None]  # (runner, tick record) -> None, after every tick
 
@@ -96,6 +99,10 @@ class Task:
     values: ClassVar[tuple[TaskValue, ...]] = ()
     measurements: ClassVar[Mapping[str, str]] = {}  # what judge measures: name -> meaning
     max_sim_time: ClassVar[float] = 120.0  # s of simulated time a run may take
+    # What a perturbed run varies (besman.sim.perturbations), acting on the object of that name; None: the
+    # task is not perturbed.
+    perturbations: ClassVar[Perturbations | None] = None
+    perturbed_object: ClassVar[str] = "box"
 
     # -- what a subclass defines ---------------------------------------------------------------------------
 

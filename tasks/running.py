@@ -20,7 +20,9 @@ import numpy as np
 import py_trees
 
 from besman.robots.catalogue import ROBOT
+from besman.sim.perturbations import check_mode
 from besman.skills.errors import InputError
+from besman.skills.seeds import child_seed
 from besman.skills.validation import CALLABLE, PATH, SEED, checked, instance, optional, positive, text
 from besman.tasks import task as find_task
 from besman.tasks.base import Observer, Task
@@ -68,6 +70,7 @@ RUN_ARGUMENTS = {
     "max_sim_time": optional(positive),
     "pool": optional(PATH),
     "demo": optional(text("a demo name")),
+    "perturb": optional(text("a perturbation mode")),
 }
 
 
@@ -84,11 +87,13 @@ def prepare(
     pool: str | Path | None = None,
     allow_modules: Iterable[str] = (),
     demo: str | None = None,
+    perturb: str | None = None,
 ) -> TaskRun:
     """A run of ``tree`` (default: the task's own) on ``task`` (default: the one the tree file names) on
     ``robot`` (default: the task's), its task values ``values`` given or drawn with ``seed``; ``pool``
-    replaces the pools the tree names. Everything is checked before the scene is built: the tree file, the
-    task and robot, and the values (names, counts, inside the robot's box)."""
+    replaces the pools the tree names; ``perturb`` ("perception" or "push") perturbs the run as the task
+    declares (:mod:`besman.sim.perturbations`, drawn with ``seed``). Everything is checked before the scene
+    is built: the tree file, the task and robot, and the values (names, counts, inside the robot's box)."""
     if task is None and tree is None:
         raise InputError("a run needs a task or a tree file that names its task")
     from_file = tree is not None and not isinstance(tree, py_trees.behaviour.Behaviour)
@@ -115,6 +120,7 @@ def prepare(
             raise InputError(f"task {task.name} has no default tree; give a tree file")
         tree, from_file = task.tree_path, True
     robot = task.check_robot(robot)
+    _check_perturb(task, perturb, seed)
     if from_file:
         import besman.robots as robots
 
@@ -129,6 +135,7 @@ def prepare(
     task_values = task.resolve(robot, {k: v for k, v in given.items() if k not in read}, seed)
     py_trees.blackboard.Blackboard.clear()
     scene = task.scene(robot, task_values, seed)
+    observe_perturbation, perturbation = _perturbed(task, scene, perturb, seed)
     set_task_values({**scene.values, **extra})
     run_info = {
         "task": task.name,
@@ -142,15 +149,44 @@ def prepare(
         "pool": None if pool is None else str(Path(pool).resolve()),
         "settings": scene.settings,
         "max_sim_time": max_sim_time or task.max_sim_time,
+        "perturb": perturb,
     }
+    if perturbation:
+        run_info["perturbation"] = perturbation
     runner = Runner(
         root,
         scene.executor,
         max_sim_time=run_info["max_sim_time"],
         run_info=run_info,
-        observe=observers(scene.observe, observe),
+        observe=observers(scene.observe, observe_perturbation, observe),
     )
     return TaskRun(runner, scene.judge)
+
+
+PERTURBATION_STREAM = 7  # the child of the run's seed that draws its perturbations
+
+
+def _check_perturb(task: Task, perturb: str | None, seed: int | None) -> None:
+    check_mode(perturb)
+    if perturb is not None and task.perturbations is None:
+        raise InputError(f"--perturb: task {task.name} declares no perturbations")
+    if perturb is not None and seed is None:
+        raise InputError("--perturb: a perturbed run draws its perturbations with its seed: give --seed")
+
+
+def _perturbed(task: Task, scene, perturb: str | None, seed: int | None) -> tuple[Observer | None, dict]:
+    """Sets the run's perturbations up in ``scene`` (its world's perception); the observer that pushes the
+    object (or None) and what was drawn, for the log."""
+    if perturb is None:
+        return None, {}
+    model = task.perturbations
+    rng = np.random.default_rng(child_seed(seed, PERTURBATION_STREAM))
+    scene.executor.world.perception = model.perception(rng)
+    described = {"mode": perturb, **model.describe()}
+    if perturb != "push":
+        return None, described
+    push = model.push_of(task.perturbed_object, rng)
+    return (lambda runner, _: push(runner.executor)), {**described, "push": push.describe()}
 
 
 @checked(log=optional(PATH))
@@ -199,6 +235,7 @@ def _rebuild(header: dict, allow_modules: Iterable[str]) -> TaskRun:
         pool=run_info.get("pool"),
         allow_modules=allow_modules,
         demo=run_info.get("demo"),
+        perturb=run_info.get("perturb"),
     )
 
 

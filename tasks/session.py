@@ -73,6 +73,7 @@ class Session:
         pool=None,
         allow_modules=(),
         demo: str | None = None,
+        perturb: str | None = None,
     ) -> None:
         from_file = isinstance(tree, str | os.PathLike)
         if task is None and not from_file:
@@ -83,7 +84,7 @@ class Session:
         self.task = find_task(named)
         self.tree, self.seed = tree, seed
         self.robot = self.task.check_robot(robot)
-        self._options = {"pool": pool, "allow_modules": allow_modules, "demo": demo}
+        self._options = {"pool": pool, "allow_modules": allow_modules, "demo": demo, "perturb": perturb}
         self.bounds = self.task.bounds(self.robot)
         self._lock = threading.Condition()
         self._running = False  # the run may tick

@@ -46,7 +46,7 @@ def rotation_angle(q1, q2) -> np.ndarray:
     return 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))
 
 
-def failed_placements(pool: Path, taus, robot: str = "aila") -> list[tuple]:
+def failed_placements(pool: Path, taus, robot: str = "aila", tree: Path = LEARNED_TREE) -> list[tuple]:
     """The learned tree with ``pool``'s templates on ``robot`` at every pick-and-place tau of ``taus`` (each
     checked to be no training task of them), zero shot (the templates' means; online refinement off, as
     ``benchmarks/learned.py``'s zero-shot tree): the runs that did not succeed (the task's rule: the object
@@ -63,13 +63,13 @@ def failed_placements(pool: Path, taus, robot: str = "aila") -> list[tuple]:
         for tau in taus:
             distances = np.abs(trained - np.asarray(tau)).max(axis=1)
             assert distances.min() > 1e-3, f"{tau} is a training task of {name!r}"
-    text = LEARNED_TREE.read_text()
-    assert "refine_above: 0.08" in text
+    text = tree.read_text()
+    assert "refine_above: 0.08" in text or tree != LEARNED_TREE
     zero_shot = text.replace("refine_above: 0.08", "refine_above: 1.0e9")
     failed = []
     for tau in taus:
-        tree = loads_tree(zero_shot, base=LEARNED_TREE.parent, source=LEARNED_TREE.name, pool=pool)
-        summary = run("pick-place", tree, values=pick_place.split(tau), robot=robot)
+        root = loads_tree(zero_shot, base=tree.parent, source=tree.name, pool=pool)
+        summary = run("pick-place", root, values=pick_place.split(tau), robot=robot)
         error = summary.measurements["placement_error_m"]
         if not summary.success:
             failed.append((tuple(tau), summary.status, error, summary.message))

@@ -80,6 +80,15 @@ def test_the_learned_tree_places_the_box_with_a_full_pool_learned_here_at_unseen
 
 
 @pytest.mark.slow
+def test_the_tree_learned_from_the_recordings_is_the_committed_one_and_places_the_box(full_pool):
+    """``besman learn`` writes the task's tree beside the pool (``tree.yaml``, from ``work/structure.json``):
+    the committed pool's, word for word, and run as written it places the box at unseen tasks."""
+    for name in ("tree.yaml", "work/structure.json"):
+        assert (full_pool / name).read_text() == (COMMITTED_POOL / name).read_text(), name
+    assert failed_placements(full_pool, UNSEEN_TAUS, tree=full_pool / "tree.yaml") == []
+
+
+@pytest.mark.slow
 def test_the_learned_tree_places_the_box_with_the_committed_pool_at_unseen_tasks():
     assert failed_placements(COMMITTED_POOL, UNSEEN_TAUS) == []
 

@@ -49,3 +49,60 @@ def test_an_objective_of_the_wrong_shape_or_with_a_nan_is_refused_by_name():
         refine_sequence(lambda thetas: np.full((len(thetas[0]), 2), np.nan), STARTS, budget=10, seed=0)
     with pytest.raises(InputError, match="cannot be split over 2 blocks"):
         refine_sequence(two_blocks, STARTS, jointly=False, budget=1, seed=0)
+
+
+# -- pick and place as a sequence: whole-task rollouts, and besman learn --refinement sequence -------------
+
+
+def test_a_block_that_did_not_run_gets_the_mean_cost_of_the_block_where_it_ran():
+    from besman.learning.pipeline_sequence import impute
+    from besman.sim.blocks import Reward
+
+    costs = np.array([[0.2, 0.3, 0.1], [1.2, np.nan, np.nan], [0.4, 0.5, np.nan]])
+    filled = impute(costs, Reward())
+    np.testing.assert_allclose(filled, [[0.2, 0.3, 0.1], [1.2, 0.4, 0.1], [0.4, 0.5, 0.1]])
+    assert impute(np.full((2, 1), np.nan), Reward()).tolist() == [[1.0], [1.0]]  # ran nowhere: a failure
+
+
+def test_a_refinement_the_task_cannot_do_is_refused_before_any_work():
+    from dataclasses import replace
+
+    from besman.learning.pipeline_record import LearnError, LearnSettings
+    from besman.tasks import task
+
+    blocks = task("pick-place").building_blocks("aila")
+    with pytest.raises(LearnError, match="refinement must be one of blocks, sequence, sequence-by-block"):
+        LearnSettings(refinement="jointly").check(blocks)
+    with pytest.raises(LearnError, match="has no whole-task rollouts"):
+        LearnSettings(refinement="sequence").check(replace(blocks, sequence=None))
+    assert "refinement" not in LearnSettings().as_dict(blocks)  # the records of earlier pools still match
+    assert LearnSettings(refinement="sequence").as_dict(blocks)["refinement"] == "sequence"
+
+
+def test_a_whole_task_rollout_costs_each_block_and_its_seed_repeats_it():
+    """The committed AILA pool's shapes as they are, one pick-and-place tau: the same rollout seed gives
+    the same rollout; each block has its own cost (a failure's block carries the failure, the blocks after
+    it did not run)."""
+    from pathlib import Path
+
+    from besman.tasks import task
+    from besman.tasks.pick_place.sequence import SequenceConfig
+
+    shapes = (
+        Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place_aila" / "work" / "shapes"
+    )
+    rollouts = SequenceConfig(
+        "aila", tuple(str(shapes / f"{b}.json") for b in ("reach", "carry", "return"))
+    ).build()
+    theta = np.concatenate(rollouts.start())
+    tau = task("pick-place").join(task("pick-place").default_values("aila"))
+    outcomes = [rollouts.rollout(theta, np.r_[tau, seed, 0]) for seed in (5, 5, 6)]
+    assert outcomes[0].costs == outcomes[1].costs and outcomes[0].message == outcomes[1].message
+    for outcome in outcomes:
+        costs = np.array(outcome.costs)
+        if outcome.success:
+            assert np.all((costs > 0) & (costs < 0.5)), costs  # motion costs only
+        else:
+            failed = ("reach", "carry", "return").index(outcome.failed_block)
+            assert costs[failed] >= 1.0 and np.all(np.isnan(costs[failed + 1 :]))
+    assert any(outcome.success for outcome in outcomes)

@@ -18,7 +18,7 @@ from py_trees.common import Access, Status
 
 from besman.sim.manipulation import Target
 from besman.sim.objects import yaw_error, yaw_of
-from besman.sim.outcomes import PLACE_TOLERANCE, YAW_TOLERANCE
+from besman.sim.outcomes import PLACE_TOLERANCE, TILT_LIMIT, YAW_TOLERANCE
 from besman.sim.proximity import ArmProximity
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
@@ -44,8 +44,9 @@ class ObjectGrasped(SimulationBehaviour):
 
 
 class ObjectAt(SimulationBehaviour):
-    """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``, and turned to
-    its yaw within :data:`~besman.sim.outcomes.YAW_TOLERANCE` if it has one? Either is a target as
+    """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``, standing
+    (tilted less than :data:`~besman.sim.outcomes.TILT_LIMIT`), and turned to its yaw within
+    :data:`~besman.sim.outcomes.YAW_TOLERANCE` if it has one? Either is a target as
     :meth:`~besman.sim.manipulation.Target.read` takes it: x, y, the yaw (deg), the height z of the top the
     object is set down on (its bottom is judged there)."""
 
@@ -83,11 +84,15 @@ class ObjectAt(SimulationBehaviour):
         turned = 0.0
         if wanted.yaw is not None:
             turned = yaw_error(yaw_of(pose.rotation), wanted.yaw, world.objects[item])
-        self.feedback_message = f"{item} is {distance * 100:.1f} cm from {np.round(target, 3).tolist()}" + (
-            "" if wanted.yaw is None else f", turned {np.degrees(turned):.1f} deg from its yaw"
+        tilt = float(np.degrees(np.arccos(min(1.0, abs(pose.rotation[2, 2])))))
+        self.feedback_message = (
+            f"{item} is {distance * 100:.1f} cm from {np.round(target, 3).tolist()}"
+            + ("" if wanted.yaw is None else f", turned {np.degrees(turned):.1f} deg from its yaw")
+            + ("" if tilt < TILT_LIMIT else f", tilted {tilt:.0f} deg (fallen over)")
         )
         aligned = np.degrees(turned) <= YAW_TOLERANCE
-        return Status.SUCCESS if distance <= self.tolerance and aligned else Status.FAILURE
+        standing = tilt < TILT_LIMIT
+        return Status.SUCCESS if distance <= self.tolerance and aligned and standing else Status.FAILURE
 
 
 class AtPose(SimulationBehaviour):

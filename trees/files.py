@@ -18,8 +18,8 @@ Node types (:data:`~besman.trees.nodes.NODE_TYPES`, derived from the classes): t
 (``Sequence``, ``Selector``, ``Parallel``) and decorators (``Retry``, ``Repeat``, ``Inverter``,
 ``SuccessIsFailure``, ``FailureIsSuccess``, ``SuccessIsRunning``, ``Timeout`` in simulated time), the loop
 ``ForEach``, besman's leaves (``ExecutePrimitive``, ``InstantiateSkillTemplate``, ``Gripper``,
-``ObjectGrasped``, ``ObjectAt``, ``AtPose``, ``ArmsApart``, ``Wait``, ``PerceiveObject``, ``PlanGrasp``,
-``PlanPlace``, ``PlanReturn``, ``PlanMove``, ``AimThrow``, ``Throw``) and subtree idioms
+``ObjectGrasped``, ``ObjectAt``, ``AtPose``, ``ArmsApart``, ``Wait``, ``RiseClear``, ``PerceiveObject``,
+``PlanGrasp``, ``PlanPlace``, ``PlanReturn``, ``PlanMove``, ``AimThrow``, ``Throw``) and subtree idioms
 (``Grasp``, ``Place``, ``ReturnHome``, ``GraspThenPlace``); ``besman tree nodes`` lists them all with their
 parameters (:mod:`besman.trees.reference`). Primitives are referenced by the path of their JSON file;
 templates by ``MODULE:NAME`` (an object with ``instantiate(tau)``), or a pool and a ``template_name``:

@@ -3,9 +3,10 @@
 Each subtree keeps its blackboard in one skill namespace; its planning leaf writes the primitives that its
 :class:`~besman.trees.leaves.ExecutePrimitive` leaves read, wired by the planning leaf's own role keys.
 
-- :func:`grasp` - perceive, plan, then pick and place's grasp steps (``PICK_STEPS`` of
-  :mod:`besman.sim.manipulation`: open, reach, descend, close on the object - a grasp is required - and
-  lift), check the grasp; retried from fresh perception when it fails.
+- :func:`grasp` - rise clear of the table if the hand is down by it (after a failed try), open, perceive,
+  plan, then the rest of pick and place's grasp steps (``PICK_STEPS`` of :mod:`besman.sim.manipulation`:
+  reach, descend - guarded: touching the object on the way fails it - close on the object - a grasp is
+  required - and lift), check the grasp; retried from fresh perception when it fails.
 - :func:`place` - plan, then the place steps (``PLACE_STEPS``: carry and set down while a guard checks
   that the object stays in the hand, release, retreat), check that the object is at the target.
 - :func:`return_home` - the learned return to the robot's home configuration.
@@ -27,9 +28,19 @@ from typing import Any
 
 import py_trees
 
-from besman.sim.manipulation import PICK_STEPS, PLACE_STEPS, PickPlacePlan
+from besman.sim.manipulation import GRASP_SUBGOALS, PICK_STEPS, PLACE_STEPS, PLACE_SUBGOALS, PickPlacePlan
 from besman.skills.errors import InputError
-from besman.skills.validation import COUNT, as_given, checked, instance, non_negative, optional, shaped, text
+from besman.skills.validation import (
+    COUNT,
+    as_given,
+    checked,
+    instance,
+    non_negative,
+    number,
+    optional,
+    shaped,
+    text,
+)
 from besman.trees.base import NAMES, RoleBehaviour, SimulationBehaviour
 from besman.trees.conditions import ObjectAt, ObjectGrasped
 from besman.trees.leaves import ExecutePrimitive, Gripper
@@ -41,6 +52,7 @@ from besman.trees.manipulation import (
     PlanGrasp,
     PlanPlace,
     PlanReturn,
+    RiseClear,
 )
 from besman.trees.templates import check_template
 
@@ -51,7 +63,11 @@ SUBTREE_ARGUMENTS = {
     "namespace": text("a namespace"),
     "target": optional(text("a blackboard key")),
     "attempts": COUNT,
-    "plan": instance(PickPlacePlan, "a PickPlacePlan"),
+    "approach_height": optional(number),
+    "grasp_height": optional(number),
+    "descend_time": optional(number),
+    "clearance": optional(number),
+    "release_height": optional(number),
     "remap": optional(NAMES),
     "pool": optional(instance(Mapping, "a pool (skills.SkillTemplatePool)")),
     "template": optional(text("a template name")),
@@ -59,6 +75,25 @@ SUBTREE_ARGUMENTS = {
     "arm": optional(text("an arm name")),
     "offset": optional(as_given(shaped(shape=(2,)))),
 }
+
+
+SUBGOAL_KINDS = {
+    "approach_height": "float>0",
+    "grasp_height": "float",
+    "descend_time": "float>0",
+    "clearance": "float>=0",
+    "release_height": "float>=0",
+}
+
+
+def _plan(**subgoals: float | None) -> PickPlacePlan:
+    """The default plan with the subgoals given (not None) instead of its own."""
+    return DEFAULT_PLAN.with_subgoals(**{name: v for name, v in subgoals.items() if v is not None})
+
+
+def _subgoals(names: tuple[str, ...]) -> dict[str, str]:
+    """The tree-file parameters (name -> kind) of the plan's subgoals ``names``."""
+    return {name: SUBGOAL_KINDS[name] for name in names}
 
 
 def _node_type(type_name: str, parameters: Mapping[str, str], planner: type[RoleBehaviour] | None = None):
@@ -110,6 +145,7 @@ def _as_written(arguments: Mapping[str, Any], parameters: Mapping[str, str]) -> 
         "offset": "floats[2]",
         "target": "str",
         **LEARNED,
+        **_subgoals(GRASP_SUBGOALS),
     },
     PlanGrasp,
 )
@@ -126,14 +162,19 @@ def grasp(
     pool: Mapping[str, Any] | None = None,
     template: str | None = None,
     refine_above: float | None = None,
-    plan: PickPlacePlan = DEFAULT_PLAN,
+    approach_height: float | None = None,
+    grasp_height: float | None = None,
+    descend_time: float | None = None,
 ) -> py_trees.behaviour.Behaviour:
     """A subtree that grasps ``object`` (a name, or a key holding one) with ``arm`` (default: the executor's
-    own), ``offset`` from its centre, and lifts it; up to ``attempts`` tries from fresh perception. With
+    own), ``offset`` from its centre, and lifts it; up to ``attempts`` tries from fresh perception. Its
+    subgoals (:class:`~besman.sim.manipulation.PickPlacePlan`'s numbers) set how high above the grasp it
+    comes down from, where the fingers close and how long descending and lifting take. With
     ``target`` (the key of the placement the grasp is for), it grasps so that the object can be set down
     there at the target's yaw. With a ``pool`` and a ``template``, the reach is the template's (see
     :class:`PlanGrasp`)."""
     remap = _checked(name, remap or {}, PlanGrasp) | ({"target": target} if target is not None else {})
+    plan = _plan(approach_height=approach_height, grasp_height=grasp_height, descend_time=descend_time)
     planning = PlanGrasp(
         "plan grasp",
         object=object,
@@ -144,9 +185,13 @@ def grasp(
         f"{name} steps",
         memory=True,
         children=[
+            RiseClear("rise clear", object=object, arm=arm),
+            # Open before planning: after a try that closed on nothing, the grasp's checks must not see the
+            # fingers closed where they will come down open.
+            *_step_leaves(PICK_STEPS[:1], planning, object),
             PerceiveObject("perceive", object=object, **_wiring(PerceiveObject, namespace, remap)),
             planning,
-            *_step_leaves(PICK_STEPS, planning, object),
+            *_step_leaves(PICK_STEPS[1:], planning, object),
             ObjectGrasped("grasped?", object=object, arm=arm),
         ],
     )
@@ -156,7 +201,15 @@ def grasp(
 @checked(**SUBTREE_ARGUMENTS)
 @_node_type(
     "Place",
-    {"object": "str", "namespace": "str", "target": "str", "remap": "keys", "arm": "str", **LEARNED},
+    {
+        "object": "str",
+        "namespace": "str",
+        "target": "str",
+        "remap": "keys",
+        "arm": "str",
+        **LEARNED,
+        **_subgoals(PLACE_SUBGOALS),
+    },
     PlanPlace,
 )
 def place(
@@ -170,12 +223,16 @@ def place(
     pool: Mapping[str, Any] | None = None,
     template: str | None = None,
     refine_above: float | None = None,
-    plan: PickPlacePlan = DEFAULT_PLAN,
+    clearance: float | None = None,
+    release_height: float | None = None,
+    descend_time: float | None = None,
 ) -> py_trees.behaviour.Behaviour:
     """A subtree that puts the held ``object`` down at the target (role ``target``, or the key ``target``)
-    with ``arm``. With a ``pool`` and a ``template``, the carry is the template's (see
-    :class:`PlanPlace`)."""
+    with ``arm``. Its subgoals set how far above the shelf the carry ends, where the object is let go and
+    how long setting down and retreating take. With a ``pool`` and a ``template``, the carry is the
+    template's (see :class:`PlanPlace`)."""
     remap = _checked(name, remap or {}, PlanPlace) | ({"target": target} if target is not None else {})
+    plan = _plan(clearance=clearance, release_height=release_height, descend_time=descend_time)
     planning = PlanPlace(
         "plan place", object=object, **_planning(plan, namespace, remap, arm, pool, template, refine_above)
     )
@@ -211,7 +268,6 @@ def grasp_then_place(
     pool: Mapping[str, Any] | None = None,
     grasp_template: str | None = None,
     place_template: str | None = None,
-    plan: PickPlacePlan = DEFAULT_PLAN,
 ) -> py_trees.behaviour.Behaviour:
     """Grasp ``object`` (unless already held) and place it at the blackboard key ``target``; a failure
     anywhere (a slip, a missed grasp) retries from the top, up to ``attempts`` times. With a ``pool``, the
@@ -224,10 +280,10 @@ def grasp_then_place(
         memory=True,
         children=[
             ObjectGrasped("holding?", object=object),
-            grasp("grasp", object=object, target=target, plan=plan, **_learned(pool, grasp_template)),
+            grasp("grasp", object=object, target=target, **_learned(pool, grasp_template)),
         ],
     )
-    put = place("place", object=object, target=target, plan=plan, **_learned(pool, place_template))
+    put = place("place", object=object, target=target, **_learned(pool, place_template))
     sequence = py_trees.composites.Sequence(f"{name} steps", memory=True, children=[holding, put])
     return py_trees.decorators.Retry(name, sequence, num_failures=attempts)
 
@@ -295,7 +351,14 @@ def _step_leaves(steps, planning: SimulationBehaviour, object: str) -> list:
         elif step.holding:
             leaves.append(_while_holding(step.name, object, planning.key(step.move), arm))
         else:
-            leaves.append(ExecutePrimitive(step.name, remap={"primitive": planning.key(step.move)}, arm=arm))
+            leaves.append(
+                ExecutePrimitive(
+                    step.name,
+                    remap={"primitive": planning.key(step.move)},
+                    arm=arm,
+                    untouched=object if step.guarded else None,
+                )
+            )
     return leaves
 
 

@@ -84,10 +84,12 @@ class ExecutePrimitive(MotionLeaf):
         namespace: the blackboard namespace of its roles (see :mod:`besman.trees.base`).
         remap: roles read from or written to other keys (see :mod:`besman.trees.base`).
         arm: the arm that executes it, on a robot driven with several (default: the executor's own).
+        untouched: an object (a name, or a key holding one) that the robot must not touch on the way: a
+            touch fails it (:class:`~besman.sim.motions.FollowPrimitive`).
     """
 
     roles: ClassVar = {"primitive": Access.READ}
-    parameters: ClassVar = {"primitive": "primitive", "timeout": "float>0", "arm": "str"}
+    parameters: ClassVar = {"primitive": "primitive", "timeout": "float>0", "arm": "str", "untouched": "str"}
 
     def __init__(
         self,
@@ -98,9 +100,11 @@ class ExecutePrimitive(MotionLeaf):
         namespace: str = "",
         remap: Mapping[str, str] | None = None,
         arm: str | None = None,
+        untouched: str | None = None,
     ) -> None:
         super().__init__(name, timeout=timeout, namespace=namespace, remap=remap, arm=arm)
         self.primitive = primitive
+        self.use_object(untouched)
         if primitive is None:
             self.use("primitive")
 
@@ -110,7 +114,7 @@ class ExecutePrimitive(MotionLeaf):
             raise InputError(
                 f"{self.key('primitive')} holds {type(primitive).__name__}, not a MovementPrimitive"
             )
-        return FollowPrimitive(primitive)
+        return FollowPrimitive(primitive, untouched=self.object)
 
 
 class Gripper(MotionLeaf):

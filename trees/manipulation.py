@@ -1,5 +1,6 @@
 """Perception and planning leaves for pick and place: where the object is, and the primitives to move it.
 
+- :class:`RiseClear` raises the hand clear of the table if it is down by it (the start of every grasp try).
 - :class:`PerceiveObject` writes an object's current position (simulated perception) to ``object_position``.
 - :class:`PlanGrasp` reads ``object_position`` and writes the ``reach``, ``descend`` and ``lift``
   primitives planned from the robot's current commanded state (:func:`besman.sim.manipulation.plan_pick`).
@@ -35,10 +36,12 @@ from besman.sim.manipulation import (
     plan_pick,
     plan_place,
 )
+from besman.sim.motions import FollowPrimitive, Motion
 from besman.sim.objects import yaw_of
 from besman.sim.primitives import shaped
 from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
+from besman.trees.leaves import MotionLeaf
 from besman.trees.templates import check_template, check_template_fits
 
 # The parameters (kinds: see besman.trees.nodes) of a leaf or subtree whose motion is a skill template's
@@ -66,8 +69,48 @@ class TemplateInstance:
         return self.template.instantiate(self.tau)
 
 
+class RiseClear(MotionLeaf):
+    """Raises the hand straight up until it is ``height`` (m) above the table, if it is lower (less 5 mm);
+    succeeds at once otherwise. Every try of a grasp begins with it: after a try that failed down by the
+    object (the fingers closed on nothing: it was pushed, or perceived off), a reach from there to where
+    the object now stands would sweep the hand through it, and none is planned."""
+
+    parameters: ClassVar = {"height": "float>0", "object": "str", "arm": "str"}
+
+    def __init__(self, name: str, *, height: float = 0.12, object: str | None = None, arm: str | None = None):
+        super().__init__(name, arm=arm)
+        self.height = height
+        self.use_object(object)
+        self.clear = True
+
+    def rise(self) -> float:
+        """How far (m) the hand must rise to be ``height`` above the table (0 where there is no table)."""
+        table = self.executor.world.surfaces.get("table")
+        if table is None:
+            return 0.0
+        hand = self.executor.arm.site_pose(self.executor.position).position[2]
+        return max(0.0, table.height + self.height - hand)
+
+    def initialise(self) -> None:
+        self.clear = self.rise() <= 0.005
+        if not self.clear:
+            super().initialise()
+
+    def update(self) -> Status:
+        if self.clear:
+            self.feedback_message = "the hand is clear of the table"
+            return Status.SUCCESS
+        return super().update()
+
+    def make_motion(self) -> Motion:
+        executor = self.executor
+        allowed = () if self.object is None else (self.object,)
+        return FollowPrimitive(plan_move(executor.arm, executor.position, rise=self.rise(), allowed=allowed))
+
+
 class PerceiveObject(SimulationBehaviour):
-    """Writes the current position of ``object`` to the role ``object_position``."""
+    """Writes the position of ``object`` as perceived now (:meth:`~besman.sim.world.World.perceive`: with
+    the run's perception error, if it has one) to the role ``object_position``."""
 
     roles: ClassVar = {"object_position": Access.WRITE}
     parameters: ClassVar = {"object": "str"}
@@ -81,7 +124,7 @@ class PerceiveObject(SimulationBehaviour):
 
     def update(self) -> Status:
         item = self.object
-        position = self.executor.world.object_pose(item).position
+        position = self.executor.world.perceive(item).position
         self.blackboard.set("object_position", position, overwrite=True)
         self.feedback_message = f"{item} at {position.round(3).tolist()}"
         return Status.SUCCESS
@@ -247,7 +290,7 @@ class PlanGrasp(_Plan):
 
     def _planned(self, goal: np.ndarray, item, shape):
         executor = self.executor
-        yaw = yaw_of(executor.world.object_pose(item.name).rotation)
+        yaw = yaw_of(executor.world.perceived(item.name).rotation)  # as the latest look saw it
         then = self.blackboard.get("target") if "target" in self.remap else None
         settings = executor.reference_settings
         return plan_pick(executor.arm, executor.position, item, goal, self.plan, settings, shape, yaw, then)

@@ -27,7 +27,7 @@ from besman.trees.guards import KeepApart
 from besman.trees.idioms import grasp, grasp_then_place, place, return_home
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
 from besman.trees.loops import ForEach
-from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanPlace, PlanReturn
+from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanPlace, PlanReturn, RiseClear
 from besman.trees.throwing import AimThrow, Throw
 from besman.trees.timing import SimTimeout, Wait
 
@@ -169,6 +169,7 @@ NODE_TYPES: dict[str, NodeType] = {
             AtPose,
             ArmsApart,
             Wait,
+            RiseClear,
             PerceiveObject,
             PlanGrasp,
             PlanPlace,

@@ -39,9 +39,22 @@ def _learn(args: argparse.Namespace) -> int:
         n_blocks=args.blocks,
         examples=tuple(args.examples),
         roles=args.roles,
+        refinement=args.refinement,
     )
     result = learn(args.demos, args.out, settings, blocks=blocks, force=args.force)
+    from besman.learning.pipeline_sequence import subgoals
+    from besman.trees.learned import write_learned_tree
+
+    tree = write_learned_tree(
+        result.pool,
+        result.structure,
+        task=blocks.task,
+        object=blocks.object,
+        target=blocks.target,
+        subgoals=subgoals(result.refined),
+    )
     print(f"pool {result.pool}: templates {', '.join(result.templates)}")
+    print(f"  tree {tree}: {' -> '.join(result.structure.order)} ({result.structure.decided})")
     for block, runs in result.refined.items():
         refined = sum(run["outcome"]["success"] for run in runs)
         retargeted = sum(run["start_outcome"]["success"] for run in runs)
@@ -69,6 +82,14 @@ def register(commands) -> None:
     )
     learn.add_argument("--budget", type=COUNT, default=48, help="rollouts per training task (default 48)")
     learn.add_argument("--seed", type=SEED, default=0)
+    learn.add_argument(
+        "--refinement",
+        choices=("blocks", "sequence", "sequence-by-block"),
+        default="blocks",
+        help="blocks: each block alone from the planned starts (default); sequence: all blocks and their "
+        "subgoals together on whole-task rollouts with the task's perturbations, each credited with its "
+        "cost-to-go; sequence-by-block: the same rollouts, one block after the other (see docs/learning.md)",
+    )
     learn.add_argument(
         "--backend",
         choices=("threads", "ray"),

@@ -144,6 +144,16 @@ def _tree_check(args: argparse.Namespace) -> int:
     return 1 if problems else 0
 
 
+def _perturb_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--perturb",
+        choices=("perception", "push"),
+        default=None,
+        help="perturb the run as the task declares (drawn with --seed): the object's pose perceived with an "
+        "error, and with push also pushed while the hand approaches it",
+    )
+
+
 def _run(args: argparse.Namespace) -> int:
     from besman.skills.storage import check_output
     from besman.trees.runner import LOG_KIND
@@ -260,6 +270,7 @@ def register(commands) -> None:
     run.add_argument(
         "--seed", type=SEED, default=None, help="draws the task values not set (default: the task's own)"
     )
+    _perturb_option(run)
     run.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     run.add_argument(
@@ -279,6 +290,7 @@ def register(commands) -> None:
         "--seed", type=SEED, default=None, help="draws the configuration (default: the task's own)"
     )
     _set_option(demo)
+    _perturb_option(demo)
     demo.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
     demo.add_argument("--json", action="store_true", help="print the summary as JSON")
     view_options(demo)

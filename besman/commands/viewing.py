@@ -67,6 +67,7 @@ def run_task(args: argparse.Namespace, *, task=None, tree=None, values: dict, lo
         "pool": getattr(args, "pool", None),
         "allow_modules": getattr(args, "allow_module", ()),
         "demo": demo,
+        "perturb": getattr(args, "perturb", None),
     }
     if not args.view:
         from besman.tasks.running import run

@@ -13,7 +13,9 @@ or a cylinder (diameter, height), its width bounded by what the robot's first gr
   it), drawn uniformly; the seed also draws the object's mass and friction from the family's ranges.
   Success (:func:`~besman.tasks.pick_place.rule.measure_placement`): after 0.3 s to settle, the object
   stands upright (tilt < 10 deg) on the shelf within 2 cm of the place target and within 5 deg of its yaw
-  (modulo the object's symmetry: a box's 180 deg, a square box's 90, a cylinder any).
+  (modulo the object's symmetry: a box's 180 deg, a square box's 90, a cylinder any). Perturbed
+  (``--perturb``, :data:`PERTURBATIONS`): the object's pose is perceived up to 1.5 cm and 5 deg off at
+  every look, and with ``push`` it is pushed 1-3 cm half-way through the reach.
 - **pick** (``grasp.yaml``): tau = object, shape and size. Success: the object is in the hand and 5 cm
   above where it stood (:func:`~besman.tasks.pick_place.rule.measure_lift`).
 - **place** (``place.yaml``): tau as pick-place's; the run begins with the object in the hand, 5 cm above
@@ -36,6 +38,7 @@ from typing import ClassVar
 import numpy as np
 
 from besman.sim.objects import FINGER_CLEARANCE, GraspableObject, ObjectFamily
+from besman.sim.perturbations import Perturbations
 from besman.skills.errors import InputError
 from besman.skills.seeds import child_seed
 from besman.skills.tasks import TaskBounds
@@ -75,6 +78,8 @@ SIZE = TaskValue(
     "the object's width, depth and height (a cylinder: diameter, diameter, height)",
 )
 YAWS = (-180.0, 180.0)  # deg: the whole circle
+# The object's pose perceived up to 1.5 cm and 5 deg off; pushed 1-3 cm half-way through the reach.
+PERTURBATIONS = Perturbations(position=0.015, yaw=5.0, push=0.03, smallest_push=0.01, during="reach")
 PROPERTIES_STREAM = 1  # the child of the run's seed that draws the object's mass and friction
 
 
@@ -161,6 +166,7 @@ class PickPlace(Task):
     robot = "aila"
     tree = "grasp_then_place.yaml"
     values = (OBJECT, PLACE, SHAPE, SIZE)
+    perturbations = PERTURBATIONS
     measurements: ClassVar[Mapping[str, str]] = {
         "placement_error_m": "the object's distance from its target on the shelf, in the plane",
         "placement_yaw_error_deg": "how far the object's yaw is from the target's, modulo its symmetry",

@@ -19,6 +19,7 @@ from besman.learning.blocks import BuildingBlocks
 from besman.sim.blocks import (
     BLOCKS,
     INPUT_NAMES,
+    OBJECT,
     BlockStart,
     Reward,
     block_input,
@@ -31,6 +32,7 @@ from besman.sim.evaluation import BatchedTask, Evaluation
 from besman.sim.executor import Executor
 from besman.sim.world import World
 from besman.skills import MovementPrimitive
+from besman.tasks.pick_place.sequence import SequenceConfig
 
 
 def _task():
@@ -136,4 +138,7 @@ def building_blocks(task, robot: str) -> BuildingBlocks:
         start=start,
         input_names=INPUT_NAMES,
         refinement=lambda block, shape: BlockTaskConfig(block, shape, robot=robot),
+        object=OBJECT,
+        target="/task/place",
+        sequence=lambda shapes: SequenceConfig(robot, shapes),
     )
