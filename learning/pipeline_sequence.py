@@ -171,7 +171,8 @@ def _block_result(document: dict, index: int, block: str) -> dict:
         failures = sum(found == block for found in measured["failed"])
         return {"success": bool(ran and failures == 0), "ran": ran, "failed": failures}
 
-    best = -np.minimum.accumulate(np.array(document["costs"]))
+    rewards = -np.array(document["costs"])  # the whole task's, per rollout (no start row: not evaluated)
+    curve = np.column_stack([np.arange(1, len(rewards) + 1), rewards, np.maximum.accumulate(rewards)])
     return {
         "tau": document["tau"],
         "input": document["inputs"][block],
@@ -179,7 +180,7 @@ def _block_result(document: dict, index: int, block: str) -> dict:
         "subgoals": document["subgoals"].get(block, {}),
         "reward": -(after["cost"][index] if after["cost"][index] is not None else 1.0),
         "start_reward": -(before["cost"][index] if before["cost"][index] is not None else 1.0),
-        "curve": best.tolist(),
+        "curve": curve.tolist(),  # as the per-block stage's: rollout, reward, best so far
         "outcome": outcome(after),
         "start_outcome": outcome(before),
     }

@@ -34,7 +34,8 @@ def test_a_learn_that_refines_the_sequence_writes_its_subgoals_into_the_tree(sha
     pool = SkillTemplatePool(out)
     assert sorted(pool) == ["carry", "reach", "return"] and len(pool["reach"].taus) == 2
     tree = yaml.safe_load((out / "tree.yaml").read_text())
-    steps = tree["root"]["Sequence"]["children"][0]["Retry"]["child"]["Sequence"]["children"]
+    steps = tree["root"]["Sequence"]["children"][0]["Retry"]["child"]["Selector"]["children"][1]
+    steps = steps["Sequence"]["children"]
     grasp, place = steps[0]["Selector"]["children"][1]["Grasp"], steps[1]["Place"]
     refined = [d["subgoals"]["reach"]["approach_height"] for d in documents]
     assert grasp["approach_height"] == pytest.approx(float(np.median(refined)))

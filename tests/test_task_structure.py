@@ -61,8 +61,14 @@ def steps(document: dict) -> list[str]:
     for child in document["root"]["Sequence"]["children"]:
         kind, body = next(iter(child.items()))
         if kind == "Retry":
-            inner = body["child"]["Sequence"]["children"]
-            found.append("Retry[" + ", ".join(next(iter(c)) for c in inner) + "]")
+            child = body["child"]
+            if "Selector" in child:  # the condition the steps end in, checked first
+                done, child = child["Selector"]["children"]
+                found.append(f"Retry[{next(iter(done))} or ")
+            else:
+                found.append("Retry[")
+            inner = child["Sequence"]["children"]
+            found[-1] += ", ".join(next(iter(c)) for c in inner) + "]"
         else:
             found.append(kind)
     return found
@@ -79,7 +85,7 @@ def test_the_recorded_order_and_the_objects_marker_make_the_tree():
     assert structure.events == {"reach": "close", "carry": "open", "return": None}
     assert structure.after == {"reach": "holding", "carry": "placed", "return": None}
     assert structure.decided == "3 of 3 recordings with every block show this order"
-    assert steps(tree_of(structure)) == ["Retry[Selector, Place]", "ReturnHome"]
+    assert steps(tree_of(structure)) == ["Retry[ObjectAt or Selector, Place]", "ReturnHome"]
 
 
 def test_recordings_of_another_order_give_another_tree():
@@ -92,7 +98,7 @@ def test_recordings_of_another_order_give_another_tree():
         "reach": "close",
         "carry": "open",
     }
-    assert steps(tree_of(structure)) == ["ReturnHome", "Retry[Selector, Place]"]
+    assert steps(tree_of(structure)) == ["ReturnHome", "Retry[ObjectAt or Selector, Place]"]
     assert tree_of(structure) != tree_of(structure_of(synthetic(BLOCKS)))
 
 
@@ -149,7 +155,8 @@ def test_subgoals_go_to_the_grasp_and_the_place(tmp_path):
     text = path.read_text()
     assert text.startswith("# Learned by besman learn from the recordings")
     document = yaml.safe_load(text)
-    retry = document["root"]["Sequence"]["children"][0]["Retry"]["child"]["Sequence"]["children"]
+    retry = document["root"]["Sequence"]["children"][0]["Retry"]["child"]["Selector"]["children"][1]
+    retry = retry["Sequence"]["children"]
     grasp = retry[0]["Selector"]["children"][1]["Grasp"]
     assert grasp["approach_height"] == 0.12 and grasp["descend_time"] == 1.4
     assert retry[1]["Place"]["clearance"] == 0.05

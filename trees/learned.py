@@ -13,7 +13,9 @@ template as its learned motion:
 - a block that changes neither (the hand moves free) is a ``ReturnHome`` (the template is its move home).
 
 A grasp and the place that follows it can fail (a missed grasp, a slip, a placement off its target): the
-two are retried together, up to ``attempts`` times. The blocks run in the recorded order, in one
+two are retried together, up to ``attempts`` times, each try first checking ``placed?`` (the condition the
+place ends in) and acting only if it does not hold - a try that failed after the object was placed (its
+retreat, say) does not reach for the placed object again. The blocks run in the recorded order, in one
 ``Sequence``. :func:`learned_tree` gives the file's document; :func:`write_learned_tree` writes it beside
 the pool (``POOL/tree.yaml``, with ``pool: .``), where ``besman run`` finds the templates. It runs the
 templates zero-shot (their means for the moves planned); a ``refine_above`` on a leaf refines an unsure
@@ -71,7 +73,8 @@ def learned_tree(
                 }
             }
             unit = f"{pending[0]}, {block}" if pending else block
-            steps.append(_retried(unit, [pending[1], place] if pending else [place], attempts))
+            placed = {"ObjectAt": {"name": "placed?", "object": object, "remap": {"target": target}}}
+            steps.append(_retried(unit, [pending[1], place] if pending else [place], attempts, placed))
             pending = None
             continue
         if held:
@@ -118,15 +121,14 @@ def _grasp(block: str, object: str, target: str, learned: dict) -> dict:
     }
 
 
-def _retried(blocks: str, children: list[dict], attempts: int) -> dict:
-    """``children`` (the steps of ``blocks``) in a sequence, tried up to ``attempts`` times."""
-    return {
-        "Retry": {
-            "name": f"{blocks}: retried",
-            "attempts": attempts,
-            "child": {"Sequence": {"name": f"{blocks}: steps", "memory": True, "children": children}},
-        }
-    }
+def _retried(blocks: str, children: list[dict], attempts: int, done: dict | None = None) -> dict:
+    """``children`` (the steps of ``blocks``) in a sequence, tried up to ``attempts`` times; with ``done``
+    (the condition the steps end in), each try first checks it and acts only where it does not hold: a
+    try that failed after it held (a retreat after a correct placement) does not start the steps again."""
+    steps = {"Sequence": {"name": f"{blocks}: steps", "memory": True, "children": children}}
+    if done is not None:
+        steps = {"Selector": {"name": f"{blocks}: done or do", "memory": True, "children": [done, steps]}}
+    return {"Retry": {"name": f"{blocks}: retried", "attempts": attempts, "child": steps}}
 
 
 def write_learned_tree(pool: str | Path, structure: TaskStructure, **options) -> Path:
