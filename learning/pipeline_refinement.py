@@ -99,7 +99,7 @@ def refine_blocks(
                 path = folder / f"{block}-{k}.json"
                 if not path.is_file():
                     task = task or blocks.refinement(block, str(shapes[block])).build()
-                    tau = _plannable(task, tau, blocks, child_seed(settings.seed, index, k))
+                    tau, _ = plannable(task.input, tau, blocks, child_seed(settings.seed, index, k))
                     with progress_bar(
                         settings.budget + 1, f"{block} {k + 1}/{settings.tasks}", "rollout", shown
                     ) as bar:
@@ -232,13 +232,12 @@ def input_box(names: tuple[str, ...], inputs: np.ndarray) -> TaskBounds:
 REDRAWS = 20  # training tasks drawn at most in place of one whose planned motions cannot be made
 
 
-def _plannable(task, tau: np.ndarray, blocks: BuildingBlocks, seed: int) -> np.ndarray:
-    """``tau``, or if the block cannot begin there (its planned motions cannot be made) a task drawn in its
-    place with ``seed``."""
+def plannable(check, tau: np.ndarray, blocks: BuildingBlocks, seed: int) -> tuple[np.ndarray, object]:
+    """``tau`` and ``check(tau)``, or if that cannot be planned (a :class:`PlanningError`) a task drawn in
+    its place with ``seed`` and what ``check`` gives there."""
     for attempt in range(REDRAWS + 1):
         try:
-            task.input(tau)
-            return tau
+            return tau, check(tau)
         except PlanningError as error:
             failure = error
             tau = blocks.draw(1, child_seed(seed, attempt))[0]

@@ -26,9 +26,9 @@ from besman.learning.pipeline_record import (
     progress_bar,
     write_json,
 )
+from besman.learning.pipeline_refinement import plannable
 from besman.learning.policy_search import WarmStart
 from besman.learning.sequences import refine_sequence
-from besman.sim.manipulation import PlanningError
 from besman.skills.seeds import child_seed
 from besman.skills.storage import read_json
 
@@ -56,8 +56,11 @@ def refine_sequences(
             if not path.is_file():
                 task = task or config.build()
                 inputs = inputs or {b: blocks.refinement(b, str(shapes[b])).build() for b in blocks.names}
-                tau, block_inputs = _plannable(
-                    inputs, tau, blocks, child_seed(settings.seed, len(blocks.names), k)
+                tau, block_inputs = plannable(
+                    lambda t, tasks=inputs: {b: [float(v) for v in tasks[b].input(t)] for b in tasks},
+                    tau,
+                    blocks,
+                    child_seed(settings.seed, len(blocks.names), k),
                 )
                 with progress_bar(
                     settings.budget, f"sequence {k + 1}/{settings.tasks}", "rollout", shown
@@ -184,19 +187,3 @@ def _block_result(document: dict, index: int, block: str) -> dict:
         "outcome": outcome(after),
         "start_outcome": outcome(before),
     }
-
-
-REDRAWS = 20  # training tasks drawn at most in place of one whose planned motions cannot be made
-
-
-def _plannable(inputs: dict, tau: np.ndarray, blocks: BuildingBlocks, seed: int) -> tuple[np.ndarray, dict]:
-    """``tau`` and each block's template input there, or a task drawn in its place with ``seed`` if some
-    block's planned motions cannot be made."""
-    failure = None
-    for attempt in range(REDRAWS + 1):
-        try:
-            return tau, {block: [float(v) for v in task.input(tau)] for block, task in inputs.items()}
-        except PlanningError as error:
-            failure = error
-            tau = blocks.draw(1, child_seed(seed, attempt))[0]
-    raise LearnError(f"no training task of {blocks.task} could be planned: {failure}")

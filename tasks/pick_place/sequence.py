@@ -77,8 +77,8 @@ def subgoal_plan(block: str, offsets) -> PickPlacePlan:
 @dataclass(frozen=True)
 class SequenceOutcome:
     """One whole-task rollout: whether the task succeeded, the block that failed (None), the message, the
-    cost of each block (NaN: it did not run), each block's outcome, and whether the first try of each
-    step did it (no block failed)."""
+    cost of each block (NaN: it did not run) and each block's outcome (None where it could not be
+    planned)."""
 
     success: bool
     failed_block: str | None
