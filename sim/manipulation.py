@@ -116,7 +116,7 @@ class PickPlacePlan:
     grasp_height: float = 0.01  # m above the box's centre where the fingers close (the tips clear the table)
     release_height: float = 0.003  # m above the shelf where the box is let go
     carry_time: float = 2.0  # s
-    descend_time: float = 1.0  # s for each descent, lift and retreat
+    descend_time: float = 1.0  # s for each descent, lift and retreat at least (longer where the arm needs)
 
     @classmethod
     def from_theta(cls, theta) -> PickPlacePlan:
@@ -155,6 +155,16 @@ class _Leg:
     primitives: tuple[MovementPrimitive, MovementPrimitive]
     references: tuple[Trajectory, Trajectory]
     clearance: float  # smallest distance to a joint limit along the references, as a fraction of the range
+
+
+# How far (m) a guarded move's hand may go on after it touches something (it brakes within the arm's
+# limits): a few mm press a wrongly perceived object; a hand that ran on 3 cm tipped boxes over.
+STOP_DISTANCE = 0.01
+
+
+def _guarded() -> set[str]:
+    """The moves of the pick and place steps that are guarded."""
+    return {step.move for step in (*PICK_STEPS, *PLACE_STEPS) if step.guarded}
 
 
 # How far (m) the hand may stray from the straight line in each vertical move: near the box the fingers
@@ -228,15 +238,44 @@ def _pose_configurations(
     orientation: np.ndarray,
     allowed: tuple[str, ...],
 ) -> list[np.ndarray] | None:
-    """Collision-free configurations for the poses, each solved from the previous one; None if one fails."""
+    """Collision-free configurations for the poses, each solved from the previous one; None if one fails.
+
+    Where a pose's solution collides (an elbow in the robot's chest when the object is near its middle),
+    the arm may reach it on another branch: that pose is solved from :data:`BRANCH_TRIES` configurations
+    drawn over the ranges (a fixed seed: plans repeat), and the other poses from the first collision-free
+    solution outwards."""
     configurations, previous = [], start
     for index, position in enumerate(positions):
         result = arm.solve_ik(position, orientation, initial=previous, restarts=4 if index == 0 else 0)
-        if not result.success or arm.collisions(result.qpos, allowed):
+        if not result.success:
             return None
+        if arm.collisions(result.qpos, allowed):
+            return _from_branch(arm, positions, index, orientation, allowed)
         configurations.append(result.qpos)
         previous = result.qpos
     return configurations
+
+
+BRANCH_TRIES = 8
+
+
+def _from_branch(arm: Arm, positions, index: int, orientation, allowed) -> list[np.ndarray] | None:
+    """:func:`_pose_configurations` anchored at pose ``index`` on a collision-free branch, if one is found."""
+    rng = np.random.default_rng(index)
+    for _ in range(BRANCH_TRIES):
+        result = arm.solve_ik(positions[index], orientation, initial=rng.uniform(arm.lower, arm.upper))
+        if not result.success or arm.collisions(result.qpos, allowed):
+            continue
+        found = {index: result.qpos}
+        for order in (range(index - 1, -1, -1), range(index + 1, len(positions))):
+            previous = result.qpos
+            for other in order:
+                solved = arm.solve_ik(positions[other], orientation, initial=previous)
+                if not solved.success or arm.collisions(solved.qpos, allowed):
+                    return None
+                found[other] = previous = solved.qpos
+        return [found[other] for other in range(len(positions))]
+    return None
 
 
 def _build_leg(
@@ -251,7 +290,9 @@ def _build_leg(
 ) -> _Leg | None:
     """The two straight moves between the poses, if they stay straight and collision-free."""
     primitives = [
-        straight_line(name, a, b, orientation, arm, duration)
+        straight_line(
+            name, a, b, orientation, arm, duration, stop_within=STOP_DISTANCE if name in _guarded() else None
+        )
         for name, a, b in zip(names, configurations[:-1], positions[1:], strict=True)
     ]
     if any(primitive is None for primitive in primitives):

@@ -256,13 +256,15 @@ class FollowPrimitive(FollowReference):
 
     Starting raises an :class:`~besman.skills.errors.InputError` for a primitive the arm cannot execute (an
     unreachable Cartesian pose, a joint primitive of the wrong size). With ``untouched`` (an object's name)
-    it is guarded: it fails as soon as the robot touches that object (checked every :data:`GUARD_CYCLES`),
-    as a hand coming down around an object that is not where it was perceived would push it over."""
+    it is guarded: as soon as the robot touches that object (checked every :data:`GUARD_CYCLES`) it brakes
+    within the limits and fails once at rest, as a hand coming down around an object that is not where it
+    was perceived would push it over if it went on."""
 
     def __init__(self, primitive: MovementPrimitive, name: str | None = None, untouched: str | None = None):
         super().__init__(name or primitive.name)
         self.primitive = primitive
         self.untouched = untouched
+        self.touched = False
 
     def begin(self, executor: Executor) -> None:
         self.reference = joint_reference(
@@ -270,18 +272,26 @@ class FollowPrimitive(FollowReference):
         )
         super().begin(executor)
 
+    def command(self, executor: Executor) -> ruckig.Result:
+        return executor.stream.brake() if self.touched else super().command(executor)
+
     def cycles_before_success(self, config: ExecutorConfig) -> int:
         cycles = super().cycles_before_success(config)
         return cycles if self.untouched is None else min(cycles, GUARD_CYCLES)
 
     def judge(self, executor: Executor, chunk: Chunk) -> None:
+        if self.touched:
+            rest = np.flatnonzero(chunk.at_rest)
+            if rest.size:
+                self.finish(
+                    MotionStatus.FAILED,
+                    f"the robot touched {self.untouched} on the way: it is not where it was perceived",
+                    chunk.first + int(rest[0]),
+                )
+            return
         super().judge(executor, chunk)
         if self.status is MotionStatus.RUNNING and self.untouched and executor.hand.bumps(self.untouched):
-            self.finish(
-                MotionStatus.FAILED,
-                f"the robot touched {self.untouched} on the way: it is not where it was perceived",
-                chunk.first + len(chunk) - 1,
-            )
+            self.touched = True
 
 
 @dataclass

@@ -15,6 +15,7 @@ import copy
 import math
 
 import numpy as np
+import ruckig
 from scipy.interpolate import CubicSpline
 
 from besman.sim.arm import Arm
@@ -57,27 +58,82 @@ def straight_line(
     arm: Arm,
     duration: float,
     knots: int = 8,
+    stop_within: float | None = None,
 ) -> MovementPrimitive | None:
     """A joint-space DMP that moves the arm's site on a straight line from where the configuration
     ``start`` puts it to ``goal_position`` (constant ``orientation``): inverse kinematics at ``knots``
     points of a minimum-jerk profile, each solved from the previous, imitated by the DMP. The fit smooths
-    the corner where a joint reaches its limit. None if a knot is out of reach."""
+    the corner where a joint reaches its limit. None if a knot is out of reach.
+
+    It lasts ``duration`` or longer: long enough for the joints to stay within their speed, acceleration and
+    jerk limits, and with ``stop_within`` (m; a guarded move, which brakes when the hand touches something)
+    for braking within the limits from anywhere on it to move the hand at most that far."""
     origin = arm.site_pose(start).position
-    times = np.linspace(0.0, duration, knots)
-    profile = minimum_jerk(times / duration)
     path = [start]
-    for fraction in profile[1:]:
+    for fraction in minimum_jerk(np.linspace(0.0, 1.0, knots))[1:]:
         result = arm.solve_ik(origin + fraction * (goal_position - origin), orientation, initial=path[-1])
         if not result.success:
             return None
         path.append(result.qpos)
     path = np.array(path)
+    # The path against time divided by the duration: its derivatives scale with duration^-order.
+    unit = CubicSpline(np.linspace(0.0, 1.0, knots), path, axis=0, bc_type="clamped")
+    duration = _long_enough(arm, unit, duration, stop_within)
     dense = np.linspace(0.0, duration, 10 * knots)
-    positions = CubicSpline(times, path, axis=0, bc_type="clamped")(dense)
-    dmp = DMP(arm.dofs).imitate(dense, positions)
+    dmp = DMP(arm.dofs).imitate(dense, unit(dense / duration))
     # A straight move starts and ends at rest, exactly at its knots.
     dmp.configure(start=path[0], goal=path[-1], start_velocity=0.0, start_acceleration=0.0, goal_velocity=0.0)
     return _joint_primitive(dmp, name, arm)
+
+
+def _long_enough(arm: Arm, unit: CubicSpline, duration: float, stop_within: float | None) -> float:
+    """The least duration from ``duration`` up for which the joint path ``unit`` (of time / duration) keeps
+    within the limits (with the margin :func:`point_to_point` leaves) and, with ``stop_within``, stops
+    within that distance of the hand from every point (growing by 10 % until it does)."""
+    s = np.linspace(0.0, 1.0, 80)
+    peaks = [np.abs(unit(s, order)).max(axis=0) for order in (1, 2, 3)]
+    limits = (arm.max_velocity, arm.max_acceleration, arm.max_jerk)
+    needed = max(
+        float(np.max(peak / limit)) ** (1.0 / order)
+        for order, (peak, limit) in enumerate(zip(peaks, limits, strict=True), 1)
+    )
+    duration = max(duration, 1.1 * needed)
+    if stop_within is None:
+        return duration
+    positions = unit(s)
+    hand = arm.site_path(positions)
+    while True:
+        stops = stopping_positions(arm, positions, unit(s, 1) / duration, unit(s, 2) / duration**2)
+        if np.linalg.norm(arm.site_path(stops) - hand, axis=1).max() <= stop_within:
+            return duration
+        duration *= 1.1
+
+
+def stopping_positions(arm: Arm, positions, velocities, accelerations) -> np.ndarray:
+    """Where the arm comes to rest from each state (rows) braking within its limits: Ruckig's time-optimal
+    stop of every joint on its own, as the executor brakes
+    (:meth:`~besman.sim.streaming.JerkLimitedStream.brake`)."""
+    otg, trajectory = ruckig.Ruckig(arm.dofs), ruckig.Trajectory(arm.dofs)
+    inputs = ruckig.InputParameter(arm.dofs)
+    inputs.control_interface = ruckig.ControlInterface.Velocity
+    inputs.synchronization = ruckig.Synchronization.No
+    inputs.max_velocity = arm.max_velocity.tolist()
+    inputs.max_acceleration = arm.max_acceleration.tolist()
+    inputs.max_jerk = arm.max_jerk.tolist()
+    inputs.target_velocity = inputs.target_acceleration = [0.0] * arm.dofs
+    stops = []
+    for state in zip(
+        positions,
+        velocities,
+        np.clip(accelerations, -arm.max_acceleration, arm.max_acceleration),
+        strict=True,
+    ):
+        inputs.current_position, inputs.current_velocity, inputs.current_acceleration = (
+            a.tolist() for a in state
+        )
+        otg.calculate(inputs, trajectory)
+        stops.append(trajectory.at_time(trajectory.duration)[0])
+    return np.array(stops)
 
 
 def on_arm(shape: MovementPrimitive, arm: Arm) -> MovementPrimitive:

@@ -6,7 +6,13 @@ import pytest
 
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.motions import FollowPrimitive, FollowReference, GripperMotion, MotionStatus, MoveTo
-from besman.sim.primitives import cartesian_point_to_point, point_to_point, top_down
+from besman.sim.primitives import (
+    cartesian_point_to_point,
+    point_to_point,
+    stopping_positions,
+    straight_line,
+    top_down,
+)
 from besman.sim.references import joint_reference
 from besman.sim.world import tabletop_world
 from besman.skills import DMP, MovementPrimitive
@@ -77,6 +83,30 @@ def test_cartesian_primitive_moves_the_hand_on_a_straight_line(executor):
     motion = executor.run(FollowPrimitive(cartesian_point_to_point("down", goal, orientation, 1.5)))
     assert motion.status is MotionStatus.SUCCEEDED, motion.message
     np.testing.assert_allclose(world.data.site("right_grasp").xpos, goal, atol=3e-3)
+
+
+def test_a_straight_line_is_slowed_to_the_limits_and_a_guarded_one_to_its_stopping_distance(executor):
+    """A 12 cm descent asked of AILA in 0.3 s, too fast for its heavy joints' limits, lasts as long as they
+    need and runs without a lag; guarded, it is slow enough that braking within the limits
+    from any of its states moves the hand at most the distance asked."""
+    arm = executor.arm
+    above = _ik(executor, np.array([0.55, -0.1, 1.0]), top_down(0.0))
+    reach = point_to_point("reach", executor.position, above, arm)
+    assert executor.run(FollowPrimitive(reach)).status is MotionStatus.SUCCEEDED
+    goal = np.array([0.55, -0.1, 0.88])
+    fast = straight_line("descend", above, goal, top_down(0.0), arm, 0.3)
+    assert fast.dmp.execution_time > 0.6
+    motion = executor.run(FollowPrimitive(fast))
+    assert motion.status is MotionStatus.SUCCEEDED, motion.message
+    assert limit_violations(executor.log, executor) == []
+    guarded = straight_line("descend", above, goal, top_down(0.0), arm, 0.3, stop_within=0.01)
+    assert guarded.dmp.execution_time > fast.dmp.execution_time
+    reference = joint_reference(
+        arm, guarded, (above, np.zeros(arm.dofs), np.zeros(arm.dofs)), executor.reference_settings
+    )
+    stops = stopping_positions(arm, reference.positions, reference.velocities, reference.accelerations)
+    went_on = np.linalg.norm(arm.site_path(stops) - arm.site_path(reference.positions), axis=1)
+    assert 0.005 < went_on.max() <= 0.0105  # the reference is the DMP's imitation of the timed path
 
 
 def test_unreachable_cartesian_pose_fails_cleanly(executor):

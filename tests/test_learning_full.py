@@ -19,7 +19,7 @@ from besman.tasks.pick_place.blocks import BlockTask, BlockTaskConfig
 @pytest.fixture(scope="module")
 def full_pool(tmp_path_factory) -> Path:
     """The shipped pool (``examples/pools/pick_place_aila``) learned again here: ``besman learn`` on the 15
-    shared recordings with the defaults (5.2 minutes on 2 idle cores, 2026-11-26)."""
+    shared recordings with the defaults (4.7 minutes on 2 idle cores, 2026-11-27)."""
     from conftest import SHARED_RECORDINGS
 
     if not SHARED_RECORDINGS.exists():

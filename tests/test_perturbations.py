@@ -80,7 +80,8 @@ def test_a_push_moves_the_object_once_half_way_through_the_reach():
 
 def test_a_guarded_descent_stops_where_the_hand_touches_an_object_it_did_not_expect():
     """The grasp planned 3 cm off the box across the fingers (a perception error beyond their clearance):
-    the descent fails as soon as a finger touches the box, with the reason, above where it would end."""
+    the descent brakes as soon as a finger touches the box and fails at rest, with the reason, above where
+    it would end, the box standing."""
     world = tabletop_world((GraspableObject("box", size=(0.03, 0.03, 0.03)),), "aila")
     world.place_on("box", "table", 0.55, -0.08)
     executor = Executor(world)
@@ -100,6 +101,8 @@ def test_a_guarded_descent_stops_where_the_hand_touches_an_object_it_did_not_exp
     assert motion.message == "the robot touched box on the way: it is not where it was perceived"
     bottom = arm.site_pose(pick.descend.dmp.goal).position[2]
     assert arm.site_pose(executor.position).position[2] > bottom + 0.01
+    assert np.abs(executor.velocity).max() < 1e-6, "it fails once it has braked to rest"
+    assert _box_tilt(world) < 5.0
 
 
 def test_a_retry_after_a_grasp_that_closed_on_nothing_rises_opens_and_grasps_again():

@@ -94,6 +94,15 @@ def test_a_cylinder_standing_turned_is_placed(task):
     assert task.world(tau).objects["box"].shape == "cylinder"
 
 
+def test_an_object_near_the_robots_middle_is_grasped_on_the_branch_that_keeps_the_elbow_out(task):
+    """AILA's right hand reaching down to a box 1 cm right of its middle: solved from the pose above it,
+    the elbow ends in the chest; another branch of the arm reaches it collision-free (found from drawn
+    starts), and the whole episode succeeds."""
+    tau = pick_place_tau((0.48, -0.011), (0.6156, -0.4666), -27.79, -100.06, size=(0.0411, 0.0644, 0.0755))
+    detail = task.episode(tau)
+    assert detail.success, detail.message
+
+
 def test_a_box_is_grasped_only_across_the_side_the_open_gripper_fits():
     """A 5 x 6.5 cm box at 30 deg (5 cm along its x axis) in a gripper opening 6.9 cm: 5 cm plus the
     clearance on each side fits, 6.5 cm does not, so the fingers close along its x axis only: 30 and 210
