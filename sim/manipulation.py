@@ -162,11 +162,6 @@ class _Leg:
 STOP_DISTANCE = 0.01
 
 
-def _guarded() -> set[str]:
-    """The moves of the pick and place steps that are guarded."""
-    return {step.move for step in (*PICK_STEPS, *PLACE_STEPS) if step.guarded}
-
-
 # How far (m) the hand may stray from the straight line in each vertical move: near the box the fingers
 # have 1.5 cm on either side; lifting and retreating only need to stay clear of the furniture.
 MAX_DEVIATION = {"descend": 0.005, "place": 0.005, "lift": 0.02, "retreat": 0.02}
@@ -266,16 +261,25 @@ def _from_branch(arm: Arm, positions, index: int, orientation, allowed) -> list[
         result = arm.solve_ik(positions[index], orientation, initial=rng.uniform(arm.lower, arm.upper))
         if not result.success or arm.collisions(result.qpos, allowed):
             continue
-        found = {index: result.qpos}
-        for order in (range(index - 1, -1, -1), range(index + 1, len(positions))):
-            previous = result.qpos
-            for other in order:
-                solved = arm.solve_ik(positions[other], orientation, initial=previous)
-                if not solved.success or arm.collisions(solved.qpos, allowed):
-                    return None
-                found[other] = previous = solved.qpos
-        return [found[other] for other in range(len(positions))]
+        below = _chain(arm, result.qpos, positions[index - 1 :: -1] if index else [], orientation, allowed)
+        above = _chain(arm, result.qpos, positions[index + 1 :], orientation, allowed)
+        if below is None or above is None:
+            return None
+        return [*below[::-1], result.qpos, *above]
     return None
+
+
+def _chain(arm: Arm, previous: np.ndarray, positions, orientation, allowed) -> list[np.ndarray] | None:
+    """Collision-free configurations for the poses in order, each solved from the one before (the first
+    from ``previous``); None if one fails."""
+    configurations = []
+    for position in positions:
+        solved = arm.solve_ik(position, orientation, initial=previous)
+        if not solved.success or arm.collisions(solved.qpos, allowed):
+            return None
+        configurations.append(solved.qpos)
+        previous = solved.qpos
+    return configurations
 
 
 def _build_leg(
@@ -291,7 +295,13 @@ def _build_leg(
     """The two straight moves between the poses, if they stay straight and collision-free."""
     primitives = [
         straight_line(
-            name, a, b, orientation, arm, duration, stop_within=STOP_DISTANCE if name in _guarded() else None
+            name,
+            a,
+            b,
+            orientation,
+            arm,
+            duration,
+            stop_within=STOP_DISTANCE if name in GUARDED_MOVES else None,
         )
         for name, a, b in zip(names, configurations[:-1], positions[1:], strict=True)
     ]
@@ -363,6 +373,9 @@ PLACE_STEPS = (
     Step("release", gripper="release"),
     Step("retreat", move="retreat"),
 )
+
+# The planned moves that run guarded (planned slow enough to stop within STOP_DISTANCE).
+GUARDED_MOVES = frozenset(step.move for step in (*PICK_STEPS, *PLACE_STEPS) if step.guarded)
 
 
 @dataclass(frozen=True)

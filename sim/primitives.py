@@ -100,10 +100,10 @@ def _long_enough(arm: Arm, unit: CubicSpline, duration: float, stop_within: floa
     duration = max(duration, 1.1 * needed)
     if stop_within is None:
         return duration
-    positions = unit(s)
+    positions, speeds, accelerations = unit(s), unit(s, 1), unit(s, 2)
     hand = arm.site_path(positions)
     while True:
-        stops = stopping_positions(arm, positions, unit(s, 1) / duration, unit(s, 2) / duration**2)
+        stops = stopping_positions(arm, positions, speeds / duration, accelerations / duration**2)
         if np.linalg.norm(arm.site_path(stops) - hand, axis=1).max() <= stop_within:
             return duration
         duration *= 1.1
