@@ -131,6 +131,7 @@ def store_templates(
     tasks, the refinement's spread as the prior exploration of the forcing weights (all that was searched),
     and the provenance (``record``'s recordings and settings, instances, workspace map, training)."""
     pool = SkillTemplatePool(out)
+    robot = robots.describe(blocks.robot).name  # a run on a folder (./my_arm) names the robot, not the path
     for block in blocks.names:
         prototype = MovementPrimitive.load(shapes[block])
         runs = refined[block]
@@ -143,10 +144,10 @@ def store_templates(
             input_box(blocks.input_names, inputs),
             prior_spread=np.where(forcing_weights(prototype), settings.spread, 0.0),
             seed=settings.seed,
-            task=f"{blocks.task}/{robots.describe(blocks.robot).name}",
+            task=f"{blocks.task}/{robot}",
             provenance={
                 "learner": "besman.learning.pipeline.learn",
-                "robot": blocks.robot,
+                "robot": robot,
                 "recordings": record["recordings"],
                 "instances": prototype.provenance.get("segments", []),
                 "workspace_map": prototype.provenance["retargeting"]["map"],

@@ -78,9 +78,13 @@ def _mount(spec: mujoco.MjSpec, position, yaw: float) -> None:
     mujoco.mju_quat2Mat(rotation, turn)
     for body in spec.worldbody.bodies:
         body.pos = rotation.reshape(3, 3) @ np.asarray(body.pos) + np.asarray(position)
+        # The body's orientation as the model wrote it (euler, axisangle, ... take precedence over quat).
+        own = body.quat
+        if body.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:
+            own = spec.resolve_orientation(spec.compiler.degree, spec.compiler.eulerseq, body.alt)
         turned = np.empty(4)
-        mujoco.mju_mulQuat(turned, turn, np.asarray(body.quat) / np.linalg.norm(body.quat))
-        body.quat = turned
+        mujoco.mju_mulQuat(turned, turn, np.asarray(own) / np.linalg.norm(own))
+        body.quat, body.alt.type = turned, mujoco.mjtOrientation.mjORIENTATION_QUAT
 
 
 def add_stage(spec: mujoco.MjSpec) -> None:

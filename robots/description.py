@@ -433,12 +433,39 @@ def _tasks(raw: dict, where: str) -> dict[str, dict]:
     return tasks
 
 
+# The top-level fields of each schema version (an unknown one is refused, not ignored: a misspelt or
+# later field would otherwise be lost without a word).
+FIELDS = {
+    1: frozenset({"schema_version", "name", "title", "model", "keyframe", "groups", "limits"}),
+}
+FIELDS[2] = FIELDS[1] | {
+    "attach",
+    "options",
+    "mount",
+    "floor",
+    "velocity_feedforward",
+    "gravity_compensation",
+    "home",
+    "exclude",
+    "arms",
+    "tabletop",
+    "tasks",
+}
+
+
 def read_description(path: Path) -> RobotDescription:
     """Reads and validates a ``description.json``; errors name the file and the offending field."""
     path = Path(path)
     raw = read_json(path, DescriptionError, what="robot description")
     where = str(path)
     check_schema_version(raw, (1, SCHEMA_VERSION), where, DescriptionError)
+    known = FIELDS[raw["schema_version"]]
+    unknown = sorted(set(raw) - known)
+    if unknown:
+        later = " (a field of schema_version 2)" if unknown[0] in FIELDS[2] else ""
+        raise DescriptionError(
+            f"{where}.{unknown[0]}: not a field of a description{later}; fields: {', '.join(sorted(known))}"
+        )
 
     groups: dict[str, GroupSpec] = {}
     for group_name, group in _field(raw, "groups", dict, where).items():

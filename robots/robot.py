@@ -246,11 +246,27 @@ def load(name: str) -> Robot:
     description=instance(RobotDescription, "a RobotDescription (robots.describe)"),
 )
 def compile_spec(spec: mujoco.MjSpec, description: RobotDescription) -> mujoco.MjModel:
-    """Compiles an assembled model (with whatever a world added); errors name the description."""
+    """Compiles an assembled model (with whatever a world added); errors name the description, or where the
+    robot's model compiles alone, what was added to it (the model's compiler settings apply to all of it)."""
     try:
         model = spec.compile()
     except ValueError as error:
-        raise InputError(f"{description.file}: the robot's model does not compile: {error}") from None
+        reason = " ".join(str(error).split())
+        try:
+            build_spec(description).compile()
+        except ValueError:
+            raise InputError(f"{description.file}: the robot's model does not compile: {reason}") from None
+        compiler = spec.compiler
+        settings = (
+            f"inertiafromgeom {compiler.inertiafromgeom.name[18:].lower()}, inertiagrouprange "
+            f"{[int(group) for group in compiler.inertiagrouprange]}, angles in "
+            f"{'degrees' if compiler.degree else 'radians'}"
+        )
+        raise InputError(
+            f"besman's additions to the robot's model (its world's objects and furniture) do not compile: "
+            f"{reason}; the robot's model {description.file} compiles alone, and its compiler settings "
+            f"apply to them too ({settings}): a fault of besman's, please report it"
+        ) from None
     if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, description.keyframe) < 0:
         raise DescriptionError(f"{description.file}: the model has no keyframe {description.keyframe!r}")
     return model

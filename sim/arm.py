@@ -11,6 +11,7 @@ touches the simulation.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -18,6 +19,19 @@ import numpy as np
 import besman.robots as robots
 from besman.sim.world import World
 from besman.skills.validation import checked, finite_array, instance, items, optional, text
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A contact of the robot at a configuration: "body1/body2", "geom1/geom2", how deep they overlap (m),
+    whether one is furniture (the world's fixed geoms: table, shelf) and whether one is of the hand (the
+    tool frame's body or below it: the fingers)."""
+
+    bodies: str
+    geoms: str
+    depth: float
+    furniture: bool
+    hand: bool
 
 
 class Arm:
@@ -62,13 +76,12 @@ class Arm:
         root = model.body_rootid[model.jnt_bodyid[model.joint(self.joints[0]).id]]
         self._robot_body = model.body_rootid == root  # per body: part of the robot
         # The geoms the arm's joints move, and the furniture (the world body's own geoms), that collide.
-        moved = np.zeros(model.nbody, dtype=bool)
-        moved[[model.jnt_bodyid[model.joint(name).id] for name in self.joints]] = True
-        for body in range(1, model.nbody):  # parents come before their children
-            moved[body] |= moved[model.body_parentid[body]]
+        moved = _subtrees(model, [model.jnt_bodyid[model.joint(name).id] for name in self.joints])
         colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
         self._moved_geoms = np.flatnonzero(moved[model.geom_bodyid] & colliding)
         self._furniture = np.flatnonzero((model.geom_bodyid == 0) & colliding)
+        # The hand: the tool frame's body and what hangs from it (the fingers).
+        self._hand_body = _subtrees(model, [model.site_bodyid[self._site_id]])
         self._fromto = np.empty(6)
 
     @property
@@ -155,14 +168,9 @@ class Arm:
         now: "body1/body2" for each pair, except pairs with a body named in ``allowed``. With a ``margin``
         (m), the parts the arm moves also collide with the furniture (the world's fixed geoms: table, shelf)
         closer than that: room for how far a fast move's tracking strays from its commanded path."""
-        model, scratch = self.world.model, self._pose_scratch(self._configuration(joint_positions))
-        mujoco.mj_collision(model, scratch)
-        contacts = scratch.contact
-        bodies = model.geom_bodyid[contacts.geom]  # (ncon, 2)
-        excused = np.isin(bodies, [model.body(name).id for name in allowed]).any(axis=1)
-        found = (contacts.dist < 0) & self._robot_body[bodies].any(axis=1) & ~excused
-        hits = ["/".join(model.body(b).name for b in pair) for pair in bodies[found]]
+        hits = [contact.bodies for contact in self.contacts(joint_positions, allowed)]
         if margin > 0 and not hits:
+            model, scratch = self.world.model, self._scratch  # posed by contacts()
             hits = [
                 f"{model.body(model.geom_bodyid[part]).name}/{model.geom(furniture).name or 'world'}"
                 for part in self._moved_geoms
@@ -170,6 +178,26 @@ class Arm:
                 if mujoco.mj_geomDistance(model, scratch, part, furniture, margin, self._fromto) < margin
             ]
         return hits
+
+    def contacts(self, joint_positions: np.ndarray, allowed: Sequence[str] = ()) -> list[Contact]:
+        """The contacts :meth:`collisions` names, deepest first, with their geoms and depths."""
+        model, scratch = self.world.model, self._pose_scratch(self._configuration(joint_positions))
+        mujoco.mj_collision(model, scratch)
+        contacts = scratch.contact
+        bodies = model.geom_bodyid[contacts.geom]  # (ncon, 2)
+        excused = np.isin(bodies, [model.body(name).id for name in allowed]).any(axis=1)
+        found = np.flatnonzero((contacts.dist < 0) & self._robot_body[bodies].any(axis=1) & ~excused)
+        hand = self._hand_body
+        return [
+            Contact(
+                "/".join(model.body(b).name for b in bodies[i]),
+                "/".join(model.geom(g).name or f"geom {g}" for g in contacts.geom[i]),
+                float(-contacts.dist[i]),
+                furniture=bool(np.isin(contacts.geom[i], self._furniture).any()),
+                hand=bool(hand[bodies[i]].any()),
+            )
+            for i in found[np.argsort(contacts.dist[found])]
+        ]
 
     # -- limits --------------------------------------------------------------------------------------------
 
@@ -192,3 +220,12 @@ class Arm:
                 np.cbrt(jerk / self.max_jerk).max(),
             )
         )
+
+
+def _subtrees(model: mujoco.MjModel, roots) -> np.ndarray:
+    """Per body: whether it is one of ``roots`` or hangs from one."""
+    below = np.zeros(model.nbody, dtype=bool)
+    below[roots] = True
+    for body in range(1, model.nbody):  # parents come before their children
+        below[body] |= below[model.body_parentid[body]]
+    return below

@@ -55,6 +55,10 @@ class Hand:
         """Both pads touch the object and it moves with the hand."""
         if name is None or not all(self.touching(name)):
             return False
+        return self.slip(name) < HELD_SPEED
+
+    def slip(self, name: str) -> float:
+        """How fast (m/s) the object ``name`` moves against the hand at its centre."""
         model, data = self.world.model, self.world.data
         body = self._body(name)
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, self._velocity, 0)
@@ -63,4 +67,19 @@ class Hand:
         # The hand's velocity where the object's centre is (a turning hand moves an object held off-centre).
         offset = data.xipos[body] - data.site_xpos[self.site]
         carried = self._velocity[3:] + np.cross(self._velocity[:3], offset)
-        return bool(np.linalg.norm(moving - carried) < HELD_SPEED)
+        return float(np.linalg.norm(moving - carried))
+
+    def not_held(self, name: str) -> str | None:
+        """Why the object ``name`` is not held (which rule of :meth:`holds` fails, with its numbers), or None
+        if it is."""
+        touching = self.touching(name)
+        if not all(touching):
+            sides = [side for side, touches in zip(("first", "second"), touching, strict=True) if not touches]
+            return f"the {' and '.join(sides)} side's finger pads do not touch it"
+        slip = self.slip(name)
+        if slip >= HELD_SPEED:
+            return (
+                f"both sides' finger pads touch it, but it slips: it moves {slip:.3f} m/s against the hand "
+                f"(held below {HELD_SPEED} m/s)"
+            )
+        return None

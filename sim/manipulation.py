@@ -7,7 +7,8 @@ vertical moves stay close to a straight line, keeping farthest from the joint li
 movement primitives: reach and carry are point-to-point DMPs, the vertical moves DMPs imitating
 inverse-kinematics solutions along the line (:mod:`besman.sim.primitives`). Behaviour-tree leaves and the
 scripted pick-and-place task execute them the same way. A plan that cannot be made raises
-:class:`PlanningError` with the reason.
+:class:`~besman.sim.misses.PlanningError` naming the check that the nearest candidate failed, with
+its numbers, and what to change.
 """
 
 from __future__ import annotations
@@ -18,18 +19,14 @@ from dataclasses import astuple, dataclass, fields, replace
 import numpy as np
 
 from besman.sim.arm import Arm
+from besman.sim.misses import Misses, PlanningError
 from besman.sim.objects import FINGER_CLEARANCE, GraspableObject, yaw_of, yaw_symmetry
 from besman.sim.primitives import point_to_point, shaped, straight_line, top_down
 from besman.sim.references import DEFAULT_SETTINGS, ReferenceSettings, at_rest, joint_reference
 from besman.sim.world import World
 from besman.skills import MovementPrimitive, Trajectory
-from besman.skills.errors import BesmanError, InputError
+from besman.skills.errors import InputError
 from besman.skills.validation import finite_array
-
-
-class PlanningError(BesmanError):
-    """No motion satisfies the plan's conditions; the message says which."""
-
 
 # Hand yaws where the orientation is free (an object set down at any yaw): across a pair of faces of an
 # axis-aligned box (0 or 90 deg, up to 15 deg off).
@@ -57,13 +54,16 @@ def grasp_yaws(item: GraspableObject, arm: Arm, yaw: float = 0.0) -> np.ndarray:
     its width along the closing direction plus :data:`~besman.sim.objects.FINGER_CLEARANCE` on both sides
     within the aperture (twice the gripper's grasping opening). A 6 cm cube allows every yaw of
     :data:`BOX_GRASPS`; a bar only those across it; a cylinder those of :data:`CYLINDER_GRASPS`."""
-    if item.shape == "cylinder":
-        relative, width = CYLINDER_GRASPS, np.full(len(CYLINDER_GRASPS), item.narrowest)
-    else:
-        half_x, half_y = item.footprint
-        relative = BOX_GRASPS
-        width = 2 * (half_x * np.abs(np.cos(relative)) + half_y * np.abs(np.sin(relative)))
+    relative, width = _grasp_widths(item)
     return yaw + relative[width + 2 * FINGER_CLEARANCE <= 2 * arm.gripper.open]
+
+
+def _grasp_widths(item: GraspableObject) -> tuple[np.ndarray, np.ndarray]:
+    """The grasp yaws relative to ``item`` and its width (m) across the fingers at each."""
+    if item.shape == "cylinder":
+        return CYLINDER_GRASPS, np.full(len(CYLINDER_GRASPS), item.narrowest)
+    half_x, half_y = item.footprint
+    return BOX_GRASPS, 2 * (half_x * np.abs(np.cos(BOX_GRASPS)) + half_y * np.abs(np.sin(BOX_GRASPS)))
 
 
 def hand_yaw(arm: Arm, configuration: np.ndarray) -> float:
@@ -178,6 +178,7 @@ def plan_leg(
     yaws: np.ndarray = GRASP_YAWS,
     shift=None,
     accept: Callable[[_Leg], bool] | None = None,
+    misses: Misses | None = None,
 ) -> _Leg | None:
     """The best hand yaw among ``yaws`` for three top-down poses reached one after the other from the
     configuration ``start`` (moved by ``shift(yaw)``, an (x, y) offset, where the poses depend on the
@@ -189,26 +190,34 @@ def plan_leg(
     arm mirrored. Where no yaw works from ``start``, the poses are solved from the arm's home (inverse
     kinematics started elsewhere finds other branches; the caller's move to the leg starts at ``start`` all
     the same). ``accept(leg)``, if given, must hold of the chosen leg (what the caller plans around it).
+    ``misses`` collects the checks that candidates failed.
 
     Building a yaw's moves is the expensive part, so it is a branch and bound: both moves start at a pose's
     configuration, so the closer of the first two configurations to a limit bounds the yaw's clearance from
     above; yaws are built in order of that bound, and one that cannot beat the best so far is not built.
     The choice is the same as building every yaw."""
     for first in (start, arm.home):
-        best = _best_leg(arm, first, positions, names, duration, allowed, settings, yaws, shift, accept)
+        best = _best_leg(
+            arm, first, positions, names, duration, allowed, settings, yaws, shift, accept, misses
+        )
         if best is not None:
             return best
     return None
 
 
-def _best_leg(arm, first, positions, names, duration, allowed, settings, yaws, shift, accept) -> _Leg | None:
+def _best_leg(
+    arm, first, positions, names, duration, allowed, settings, yaws, shift, accept, misses
+) -> _Leg | None:
     """:func:`plan_leg`'s choice with the poses solved from the configuration ``first``."""
     candidates = []
     for turned in (yaws, yaws + np.pi):
         for index, yaw in enumerate(turned):
             orientation = top_down(yaw)
             poses = positions if shift is None else [p + np.r_[shift(yaw), 0.0] for p in positions]
-            configurations = _pose_configurations(arm, first, poses, orientation, allowed)
+            turn = f"hand yaw {np.degrees(yaw):.0f} deg"
+            labels = (f"where {names[0]} starts", f"where {names[0]} ends", f"where {names[1]} ends")
+            labels = tuple(f"{label}, {turn}," for label in labels)
+            configurations = _pose_configurations(arm, first, poses, orientation, allowed, misses, labels)
             if configurations is not None:
                 bound = min(arm.limit_margin(configurations[0]), arm.limit_margin(configurations[1]))
                 candidates.append((bound, index, orientation, configurations, poses))
@@ -218,7 +227,7 @@ def _best_leg(arm, first, positions, names, duration, allowed, settings, yaws, s
     for bound, index, orientation, configurations, poses in sorted(candidates, key=lambda c: (-c[0], c[1])):
         if best is not None and (bound, -index) <= (best.clearance, -best_index):
             break  # neither this yaw nor any after it can beat the best
-        leg = _build_leg(arm, configurations, poses, orientation, names, duration, allowed, settings)
+        leg = _build_leg(arm, configurations, poses, orientation, names, duration, allowed, settings, misses)
         if leg is not None and accept is not None and not accept(leg):
             continue
         if leg is not None and (best is None or (leg.clearance, -index) > (best.clearance, -best_index)):
@@ -232,8 +241,11 @@ def _pose_configurations(
     positions: list[np.ndarray],
     orientation: np.ndarray,
     allowed: tuple[str, ...],
+    misses: Misses | None = None,
+    labels: tuple[str, ...] = (),
 ) -> list[np.ndarray] | None:
-    """Collision-free configurations for the poses, each solved from the previous one; None if one fails.
+    """Collision-free configurations for the poses, each solved from the previous one; None if one fails
+    (recorded in ``misses`` under the pose's label, the second pose the lowest).
 
     Where a pose's solution collides (an elbow in the robot's chest when the object is near its middle),
     the arm may reach it on another branch: that pose is solved from :data:`BRANCH_TRIES` configurations
@@ -243,9 +255,17 @@ def _pose_configurations(
     for index, position in enumerate(positions):
         result = arm.solve_ik(position, orientation, initial=previous, restarts=4 if index == 0 else 0)
         if not result.success:
+            if misses is not None:
+                misses.unreachable(labels[index], position, result, index)
             return None
-        if arm.collisions(result.qpos, allowed):
-            return _from_branch(arm, positions, index, orientation, allowed)
+        hits = arm.contacts(result.qpos, allowed)
+        if hits:
+            # The hand's pose is the pose's on every branch: a hand in the furniture stays there.
+            fixed = any(hit.hand and hit.furniture for hit in hits)
+            configurations = None if fixed else _from_branch(arm, positions, index, orientation, allowed)
+            if configurations is None and misses is not None:
+                misses.collision(labels[index], position, hits[0], index, lowest=index == 1)
+            return configurations
         configurations.append(result.qpos)
         previous = result.qpos
     return configurations
@@ -291,8 +311,10 @@ def _build_leg(
     duration: float,
     allowed: tuple[str, ...],
     settings: ReferenceSettings,
+    misses: Misses | None = None,
 ) -> _Leg | None:
-    """The two straight moves between the poses, if they stay straight and collision-free."""
+    """The two straight moves between the poses, if they stay straight and collision-free (what fails is
+    recorded in ``misses``)."""
     primitives = [
         straight_line(
             name,
@@ -311,13 +333,20 @@ def _build_leg(
         joint_reference(arm, primitive, at_rest(a), settings)
         for primitive, a in zip(primitives, configurations[:-1], strict=True)
     )
-    straight = all(
-        deviation(arm, reference, a, b) < MAX_DEVIATION[name]
-        for name, reference, a, b in zip(names, references, positions[:-1], positions[1:], strict=True)
-    )
+    turn = f"at hand yaw {np.degrees(hand_yaw(arm, configurations[0])):.0f} deg"
+    for name, reference, a, b in zip(names, references, positions[:-1], positions[1:], strict=True):
+        strays = deviation(arm, reference, a, b)
+        if strays >= MAX_DEVIATION[name]:
+            if misses is not None:
+                misses.crooked(f"{name} {turn}", strays, MAX_DEVIATION[name])
+            return None
     joints = np.concatenate([reference.positions for reference in references])
-    if not straight or any(arm.collisions(q, allowed) for q in joints[:: max(1, len(joints) // 20)]):
-        return None
+    for q in joints[:: max(1, len(joints) // 20)]:
+        hits = arm.collisions(q, allowed)
+        if hits:
+            if misses is not None:
+                misses.moving_collision(f"{' and '.join(names)} {turn}", hits[0])
+            return None
     ends = [configurations[0], *(reference.positions[-1] for reference in references)]
     return _Leg(tuple(ends), tuple(primitives), references, arm.limit_margin(joints))
 
@@ -450,7 +479,12 @@ def plan_pick(
         grasp_z = where[2] + plan.grasp_height
         carry_z = max(carry_z, grasp_z + LIFT)
     target = None if then is None else then if isinstance(then, Target) else Target.read(then)
+    misses, failed = Misses(arm), f"no top-down grasp of {item.name} at {np.round(where, 3).tolist()}"
     yaws = _grasps_for(arm, item, yaw, target, plan)
+    if len(yaws) == 0:
+        narrowest = float(_grasp_widths(item)[1].min())
+        misses.fits(narrowest, narrowest + 2 * FINGER_CLEARANCE)
+        raise misses.error(failed)
     # Lifted to carrying height, or where the wrist cannot reach that high at the yaw the object needs, as
     # high as it can, at least LIFT up (the carry then rises over the shelf: the lower it starts, the more
     # likely it dips).
@@ -474,7 +508,9 @@ def plan_pick(
         path = joint_reference(arm, move, at_rest(start), settings).positions
         path = path[:: max(1, len(path) // 30)]
         near = standing and any(arm.collisions(q, margin=REACH_MARGIN) for q in path)
-        if near and any(arm.collisions(q) for q in path):
+        hits = next((hits for q in path if (hits := arm.collisions(q))), None) if near else None
+        if hits:
+            misses.moving_collision("the reach to above the object", hits[0])
             return False
         reaches[id(leg)] = move
         missed = (target is not None and not placeable(leg.configurations[-1]), near)
@@ -496,6 +532,7 @@ def plan_pick(
                 settings=settings,
                 yaws=yaws,
                 accept=passes,
+                misses=misses,
             )
             for approach in _clearances(item, plan)
         )
@@ -504,7 +541,7 @@ def plan_pick(
     if leg is None and missing:
         leg = min(missing, key=lambda found: found[0])[1]
     if leg is None:
-        raise PlanningError("no reachable, collision-free top-down grasp of the object")
+        raise misses.error(failed)
     return PickMotions(reaches[id(leg)], *leg.primitives, leg.configurations[-1])
 
 
@@ -629,6 +666,7 @@ def plan_place(
             return -(rotation @ held)
 
     carries, swept = {}, []  # per leg its carry; how low the carries that swept the shelf went
+    misses = Misses(arm)
 
     shelf = arm.world.surface("shelf")
     reach = float(np.hypot(*item.footprint))  # how far the object reaches from its centre in the plane
@@ -662,6 +700,7 @@ def plan_place(
                 yaws=yaws,
                 shift=shift,
                 accept=carried_clear,
+                misses=misses,
             )
             for retreat in _clearances(item, plan)
         )
@@ -673,7 +712,7 @@ def plan_place(
             f"(the shelf's top is at {shelf.height:.3f} m)"
         )
     if leg is None:
-        raise PlanningError("no reachable, collision-free top-down placement at the target")
+        raise misses.error(f"no top-down placement of {item.name} at {np.round(target.xy, 3).tolist()}")
     return PlaceMotions(carries[id(leg)], *leg.primitives)
 
 

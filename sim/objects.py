@@ -53,6 +53,16 @@ class GraspableObject:
         return (self.size[0], self.size[1]) if self.shape == "box" else (self.size[0], self.size[0])
 
     @property
+    def inertia(self) -> tuple[float, float, float]:
+        """Principal moments of inertia (kg m^2) of the solid shape, about its centre."""
+        if self.shape == "box":
+            x, y, z = (2 * half for half in self.size)
+            return tuple(self.mass * (a * a + b * b) / 12 for a, b in ((y, z), (x, z), (x, y)))
+        radius, height = self.size[0], 2 * self.size[1]
+        across = self.mass * (3 * radius * radius + height * height) / 12
+        return (across, across, self.mass * radius * radius / 2)
+
+    @property
     def narrowest(self) -> float:
         """The smallest width across which fingers can close on it (m)."""
         return 2 * min(self.footprint)

@@ -112,6 +112,12 @@ class World:
             self.data.qpos[address : address + 3].copy(), self.data.qpos[address + 3 : address + 7].copy()
         )
 
+    def object_speed(self, name: str) -> tuple[float, float]:
+        """How fast object ``name`` moves now: its centre (m/s) and its turning (rad/s)."""
+        dof = self.model.jnt_dofadr[self._object_joint(name)]
+        velocity = self.data.qvel[dof : dof + 6]
+        return float(np.linalg.norm(velocity[:3])), float(np.linalg.norm(velocity[3:]))
+
     def perceive(self, name: str) -> Pose:
         """Object ``name``'s pose as perception sees it now: exact, or with a fresh error of the run's
         :attr:`perception`."""
@@ -155,13 +161,15 @@ def _add_object(spec: mujoco.MjSpec, item: GraspableObject, position) -> None:
     shapes = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER}
     if item.shape not in shapes:
         raise InputError(f"object {item.name!r}: shape must be one of {sorted(shapes)}, got {item.shape!r}")
+    # Its mass and inertia given, not inferred from the geom: the robot model's compiler settings
+    # (inertiagrouprange, inertiafromgeom) apply to everything compiled with it.
     body = spec.worldbody.add_body(name=item.name, pos=list(position))
+    body.mass, body.inertia, body.ipos, body.explicitinertial = item.mass, list(item.inertia), [0, 0, 0], True
     body.add_freejoint(name=item.name)
     body.add_geom(
         name=item.name,
         type=shapes[item.shape],
         size=list(item.size) + [0.0] * (3 - len(item.size)),
-        mass=item.mass,
         friction=list(item.friction),
         rgba=list(item.rgba),
         condim=4,

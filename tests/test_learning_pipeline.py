@@ -43,6 +43,7 @@ from besman.learning.online import MAX_ROLLOUTS, refine_online, uncertainty
 from besman.learning.pipeline import LearnError, LearnSettings, learn
 from besman.learning.pipeline_labels import longest_run
 from besman.learning.retargeting import WorkspaceMap, fit_workspace_map, retarget
+from besman.robots.catalogue import ROBOTS_DIR
 from besman.sim import Executor, tabletop_world
 from besman.sim.blocks import INPUT_NAMES, Reward, block_input, rollout
 from besman.sim.primitives import point_to_point, shaped
@@ -57,7 +58,9 @@ from besman.trees.manipulation import PlanGrasp, PlanPlace
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED_POOL = ROOT / "examples" / "pools" / "pick_place_aila"
 LEARNED_TREE = ROOT / "examples" / "trees" / "grasp_then_place_learned.yaml"
-SMALL = ("--tasks", "2", "--budget", "8")
+# The robot named by its folder, as a user's own robot is: the templates must name the robot, not the path
+# (a run on the robot by name refused a pool learned on './my_arm').
+SMALL = ("--tasks", "2", "--budget", "8", "--robot", str(ROBOTS_DIR / "aila"))
 PICK_PLACE = task("pick-place")
 BLOCKS = PICK_PLACE.building_blocks("aila")  # what `besman learn` learns by default
 # Pick-and-place tasks over the task's box that no pool here was trained on (object x, y, yaw, place x, y,

@@ -1,6 +1,7 @@
 """Robot descriptions: loading a robot folder, and clear errors for bad ones."""
 
 import json
+import math
 import shutil
 
 import pytest
@@ -8,6 +9,8 @@ import pytest
 import besman.robots as robots
 from besman.robots.catalogue import ROBOTS_DIR
 from besman.robots.description import DescriptionError
+from besman.sim.objects import GraspableObject
+from besman.sim.world import tabletop_world
 from besman.tasks import task
 
 TINY_ARM = """
@@ -99,6 +102,9 @@ def test_unknown_robot_lists_the_available_ones():
         ),
         (description(keyframe="ready"), None, "no keyframe 'ready'"),
         (description(model="missing.xml"), None, "missing.xml: the model does not load"),
+        # A field the version does not have is refused, not ignored (a mount was lost on version 1).
+        (description(mount={"yaw_degrees": 90}), None, r"\.mount: not a field of a description \(a field of"),
+        (description(schema_version=2, mout={}), None, r"\.mout: not a field of a description; fields: arms"),
     ],
 )
 def test_bad_descriptions_name_the_file_and_the_problem(tmp_path, desc, text, message):
@@ -182,3 +188,46 @@ def test_a_bad_pick_place_places_section_is_refused_naming_the_file_and_the_fiel
     with pytest.raises(DescriptionError, match=message) as error:
         task("pick-place").bounds(folder)
     assert f"{folder}/description.json: tasks.pick-place" in str(error.value)
+
+
+def test_the_mount_turns_a_base_body_that_the_model_turns_with_euler(tmp_path):
+    """The mount's yaw is added to the base body's own orientation, however the model writes it (it was
+    lost where the model used ``euler``: only ``quat`` was read)."""
+    mounted = description(schema_version=2, mount={"position": [0.1, 0.0, 0.5], "yaw_degrees": 90})
+    quaternions = []
+    for orientation in ('quat="0.9887711 0 0 0.1494381"', 'euler="0 0 0.3"', 'axisangle="0 0 1 0.3"'):
+        folder = tmp_path / orientation.split("=")[0]
+        folder.mkdir()
+        write_robot(folder, mounted)
+        model = folder / "tiny.xml"
+        model.write_text(
+            model.read_text().replace('<body name="link1">', f'<body name="link1" {orientation}>')
+        )
+        compiled = robots.load(str(folder)).model
+        quaternions.append(compiled.body_quat[compiled.body("link1").id])
+    half = (0.3 + math.pi / 2) / 2  # the model's 0.3 rad and the mount's 90 deg about z
+    for quaternion in quaternions:
+        assert quaternion == pytest.approx([math.cos(half), 0, 0, math.sin(half)], abs=1e-6)
+
+
+def test_the_world_objects_compile_whatever_the_models_compiler_settings(tmp_path):
+    """A model whose compiler infers inertia only from geoms of groups 4-5 (as gym-aloha's do) still gets
+    the tabletop world's objects with their mass: the compile error blamed the user's description."""
+    model = TINY_ARM.replace(
+        '<compiler angle="radian"/>', '<compiler angle="radian" inertiagrouprange="4 5"/>'
+    )
+    model = model.replace('mass="1"/>', 'group="4" mass="1"/>').replace(
+        'mass="0.5"/>', 'group="4" mass="0.5"/>'
+    )
+    tabletop = {
+        "table": {"height": 0.3, "x": [0.1, 0.6], "y": [-0.4, 0.4]},
+        "shelf": {"height": 0.35, "x": [0.1, 0.3], "y": [-0.4, -0.3]},
+        "reach": {"x": [0.3, 0.4], "y": [0.0, 0.1]},
+    }
+    write_robot(tmp_path, description(schema_version=2, tabletop=tabletop, floor=True))
+    (tmp_path / "tiny.xml").write_text(model)
+    cube = GraspableObject("box", size=(0.02, 0.02, 0.02), mass=0.15)
+    world = tabletop_world((cube,), robot=str(tmp_path))
+    body = world.model.body("box").id
+    assert world.model.body_mass[body] == pytest.approx(0.15)
+    assert world.model.body_inertia[body] == pytest.approx(cube.inertia)

@@ -40,7 +40,7 @@ def test_run_prints_a_truthful_json_summary(capsys, tmp_path):
     assert code == 0
     # The one documented shape of every run's and demo's --json (besman.trees.summary).
     assert list(summary) == ["schema_version", "kind", *(item.name for item in fields(RunSummary))]
-    assert summary["schema_version"] == 2 and summary["kind"] == "besman-run-summary"
+    assert summary["schema_version"] == 3 and summary["kind"] == "besman-run-summary"
     assert set(summary["measurements"]) == set(PICK_PLACE.measurements) and summary["demo"] is None
     assert summary["task"] == "pick-place"  # the task the file names
     assert summary["tree"] == str(TREE.resolve()) and summary["robot"] == "aila"

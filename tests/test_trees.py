@@ -1,5 +1,6 @@
 """Behaviour trees on the simulated AILA: leaves, failure propagation, slips, pre-emption, sim-time limits."""
 
+import mujoco
 import numpy as np
 import py_trees
 import pytest
@@ -16,6 +17,7 @@ from besman.trees import (
     InstantiateSkillTemplate,
     ObjectAt,
     ObjectGrasped,
+    PerceiveObject,
     Runner,
     SimTimeout,
     Wait,
@@ -62,6 +64,47 @@ def test_failure_propagates_with_the_failing_leaf_and_its_reason(executor):
     assert result.failed_node == "task/grab air"
     assert "closed on nothing" in result.message
     assert root.children[2].status is Status.INVALID
+
+
+def test_the_first_failure_a_retry_absorbed_is_reported_beside_the_last(executor):
+    """A step fails once and its retry succeeds; the run then fails elsewhere (the gripper closes on nothing):
+    the summary names the last failure and the first, the fault that the retry hid."""
+    flaky = py_trees.behaviours.StatusQueue("flaky", queue=[Status.FAILURE], eventually=Status.SUCCESS)
+    attempt = py_trees.composites.Sequence("attempt", memory=True, children=[flaky])
+    root = py_trees.composites.Sequence(
+        "task",
+        memory=True,
+        children=[
+            py_trees.decorators.Retry("retried", attempt, num_failures=2),
+            Gripper("grab air", action="close", expect_grasp=True, object="box"),
+        ],
+    )
+    result = Runner(root, executor).run()
+    assert result.failed_node == "task/grab air" and "closed on nothing" in result.message
+    assert result.first_failure.startswith("task/retried/attempt/flaky: ")
+    # A run that fails where it first failed names it once.
+    py_trees.blackboard.Blackboard.clear()
+    alone = Runner(Gripper("grab air", action="close", expect_grasp=True, object="box"), executor).run()
+    assert alone.failed_node == "grab air" and alone.first_failure is None
+
+
+def test_an_object_is_perceived_once_it_has_come_to_rest(executor):
+    """A box dropped from 10 cm above the table (as a failed grasp drops one) is perceived where it lands,
+    not in the air; one that never comes to rest fails the look, saying how fast it still moves."""
+    world = executor.world
+    resting = world.object_pose("box").position
+    world.set_object_pose("box", resting + [0.0, 0.0, 0.10])
+    executor.advance(10)  # falling
+    result = Runner(PerceiveObject("look", object="box"), executor).run()
+    seen = py_trees.blackboard.Blackboard.get("/object_position")
+    assert result.status == "SUCCESS" and result.sim_time_s > 0.1
+    assert seen == pytest.approx(world.object_pose("box").position)
+    assert seen[2] == pytest.approx(resting[2], abs=0.005)
+    world.model.opt.gravity[:] = [0.0, 0.0, 0.5]  # gravity turned up: the box floats away, never at rest
+    executor.advance(10)
+    py_trees.blackboard.Blackboard.clear()
+    result = Runner(PerceiveObject("look", object="box"), executor).run()
+    assert result.status == "FAILURE" and "box moves at" in result.message and "after 2 s" in result.message
 
 
 def test_preemption_brakes_the_robot_to_rest(executor):
@@ -143,7 +186,11 @@ def test_grasp_then_place_recovers_from_a_slip(executor):
         status = root.status
         carry_ticks += any(node.name == "carry" and node.status is Status.RUNNING for node in root.iterate())
         if carry_ticks == 25 and not slipped:  # half a second into the carry, the box in the air
-            assert executor.hand.holds("box")
+            assert executor.hand.holds("box") and executor.hand.not_held("box") is None
+            world = executor.world
+            world.data.qvel[world.model.jnt_dofadr[world.model.joint("box").id] + 2] -= 0.1  # sliding down
+            mujoco.mj_forward(world.model, world.data)
+            assert "pads touch it, but it slips: it moves 0.1" in executor.hand.not_held("box")
             executor.world.place_on("box", "table", 0.50, -0.12)  # out of the hand, back on the table
             slipped = True
         executor.advance(runner.cycles_per_tick)
@@ -156,7 +203,9 @@ def test_grasp_then_place_recovers_from_a_slip(executor):
 
 
 def test_conditions_report_what_they_see(executor):
-    assert Runner(ObjectGrasped("held?", object="box"), executor).run().status == "FAILURE"
+    held = Runner(ObjectGrasped("held?", object="box"), executor).run()
+    assert held.status == "FAILURE"
+    assert held.message == "not holding box: the first and second side's finger pads do not touch it"
     near = ObjectAt("there?", object="box", position=[0.55, -0.08], tolerance=0.01)
     assert Runner(near, executor).run().status == "SUCCESS"
     far = ObjectAt("elsewhere?", object="box", position=[0.45, -0.08])

@@ -38,8 +38,7 @@ class ObjectGrasped(SimulationBehaviour):
         if hand.holds(item):
             self.feedback_message = f"holding {item}"
             return Status.SUCCESS
-        touching = hand.touching(item)
-        self.feedback_message = f"not holding {item} (finger pads touching: {touching[0]}, {touching[1]})"
+        self.feedback_message = f"not holding {item}: {hand.not_held(item)}"
         return Status.FAILURE
 
 

@@ -108,9 +108,16 @@ class RiseClear(MotionLeaf):
         return FollowPrimitive(plan_move(executor.arm, executor.position, rise=self.rise(), allowed=allowed))
 
 
+# An object moving slower than this (m/s, rad/s) is at rest for perception; one still moving after SETTLE_TIME
+# (s) cannot be perceived where it will be.
+AT_REST, SETTLE_TIME = (0.01, 0.1), 2.0
+
+
 class PerceiveObject(SimulationBehaviour):
-    """Writes the position of ``object`` as perceived now (:meth:`~besman.sim.world.World.perceive`: with
-    the run's perception error, if it has one) to the role ``object_position``."""
+    """Writes the position of ``object`` as perceived (:meth:`~besman.sim.world.World.perceive`: with the
+    run's perception error, if it has one) to the role ``object_position``, once it is at rest: an object
+    that a failed grasp dropped or pushed is still falling or sliding, and where it is then is not where it
+    will be. Still moving after :data:`SETTLE_TIME`, it fails."""
 
     roles: ClassVar = {"object_position": Access.WRITE}
     parameters: ClassVar = {"object": "str"}
@@ -121,9 +128,24 @@ class PerceiveObject(SimulationBehaviour):
         super().__init__(name, namespace=namespace, remap=remap)
         self.use_object(object)
         self.use("object_position")
+        self.started = 0.0  # s of simulated time when it began to look
+
+    def initialise(self) -> None:
+        self.started = self.time
 
     def update(self) -> Status:
         item = self.object
+        speed, turning = self.executor.world.object_speed(item)
+        if speed > AT_REST[0] or turning > AT_REST[1]:
+            moving = f"{item} moves at {speed:.3f} m/s, turns at {turning:.2f} rad/s"
+            if self.time - self.started < SETTLE_TIME:
+                self.feedback_message = f"waiting for it to come to rest: {moving}"
+                return Status.RUNNING
+            self.feedback_message = (
+                f"{moving} after {SETTLE_TIME:g} s (at rest below {AT_REST[0]} m/s, {AT_REST[1]} rad/s): "
+                "it cannot be perceived where it will be"
+            )
+            return Status.FAILURE
         position = self.executor.world.perceive(item).position
         self.blackboard.set("object_position", position, overwrite=True)
         self.feedback_message = f"{item} at {position.round(3).tolist()}"

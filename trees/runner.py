@@ -72,6 +72,9 @@ class RunResult:
     ticks: int
     failed_node: str | None
     message: str
+    # The first failure a Retry absorbed, "path: message", where the run then failed elsewhere: the fault a
+    # later failure (of the retry) would hide.
+    first_failure: str | None = None
 
 
 def node_paths(root: py_trees.behaviour.Behaviour) -> dict[Any, str]:
@@ -190,6 +193,7 @@ class Runner:
         finally:
             py_trees.blackboard.Blackboard.disable_activity_stream()
         failed, message = self._outcome(status)
+        first = self._first_retried_failure() if status is not Status.SUCCESS else None
         result = RunResult(
             status.value if status in (Status.SUCCESS, Status.FAILURE) else "FAILURE",
             self.executor.time - start_sim,
@@ -197,6 +201,7 @@ class Runner:
             len(self.records),
             failed,
             message,
+            None if first == f"{failed}: {message}" else first,
         )
         if stream is not None:
             stream.close(result)
@@ -235,6 +240,21 @@ class Runner:
         failed = [node for node in self.root.iterate() if node.status is Status.FAILURE]
         tip = max(failed, key=lambda node: self.paths[node.id].count("/"), default=self.root)
         return self.paths[tip.id], tip.feedback_message
+
+    def _first_retried_failure(self) -> str | None:
+        """The deepest failed node, "path: message", of the first tick at which a Retry's child failed."""
+        retried = [
+            self.paths[node.decorated.id]
+            for node in self.root.iterate()
+            if isinstance(node, py_trees.decorators.Retry)
+        ]
+        for record in self.records:
+            failed = [path for path, status in record["statuses"].items() if status == "FAILURE"]
+            for child in retried:
+                if child in failed:
+                    tip = max((path for path in failed if path.startswith(child)), key=lambda p: p.count("/"))
+                    return f"{tip}: {record['feedback'].get(tip, '')}"
+        return None
 
     def _record(self) -> dict:
         statuses, feedback = {}, {}

@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, field
 
 from besman.trees.runner import Runner, RunResult
 
-SCHEMA_VERSION = 2  # 2: the task
+SCHEMA_VERSION = 3  # 2: the task; 3: the first failure a retry absorbed
 KIND = "besman-run-summary"
 
 
@@ -69,6 +69,7 @@ class RunSummary:
     ticks: int
     failed_node: str | None
     message: str
+    first_failure: str | None
 
     @classmethod
     def of(cls, runner: Runner, result: RunResult, measured: Measured) -> RunSummary:
@@ -95,6 +96,7 @@ class RunSummary:
             ticks=result.ticks,
             failed_node=result.failed_node,
             message=result.message,
+            first_failure=result.first_failure,
         )
 
     def to_json(self) -> dict:
@@ -110,4 +112,6 @@ class RunSummary:
             f"{head}: {self.outcome}; {self.sim_time_s:.1f} s simulated in {self.wall_time_s:.1f} s, "
             f"{self.ticks} ticks"
         )
-        return line + (f"\nfailed at {self.failed_node}: {self.message}" if self.failed_node else "")
+        failed = f"\nfailed at {self.failed_node}: {self.message}" if self.failed_node else ""
+        first = f"\nfirst failed at {self.first_failure} (then retried)" if self.first_failure else ""
+        return line + failed + first
