@@ -125,15 +125,16 @@ class ToolCentrePoint:
 
 @dataclass(frozen=True)
 class GripperSpec:
-    """A gripper: its fingers' joint group, the actuator, opening (m per finger) <-> command as two matching
-    monotone lists, the opening that grasps and releases, the pad geoms of each side and the opening's
-    motion limits (m/s, m/s^2, m/s^3 per finger), and the finger joints' speed under which they have
-    settled."""
+    """A gripper: its fingers' joint group, its actuators (none named: those that drive the group's joints),
+    opening (m per finger) <-> command as matching monotone lists (a list of commands per actuator), the
+    opening that grasps and releases, the pads of each side (geoms, or bodies whose geoms they are) and the
+    opening's motion limits (m/s, m/s^2, m/s^3 per finger), and the finger joints' speed under which they
+    have settled."""
 
     group: str
-    actuator: str
+    actuators: tuple[str, ...]
     opening: tuple[float, ...]
-    command: tuple[float, ...]
+    command: tuple[tuple[float, ...], ...]
     open: float
     pads: tuple[tuple[str, ...], tuple[str, ...]]
     limits: JointLimitSpec
@@ -301,10 +302,19 @@ def _tcp(value: Any, where: str) -> ToolCentrePoint:
 def _gripper(value: Any, where: str) -> GripperSpec:
     value = _object(value, where)
     opening = _numbers(_field(value, "opening", list, where), f"{where}.opening")
-    command = _numbers(_field(value, "command", list, where), f"{where}.command")
-    if len(opening) < 2 or len(opening) != len(command):
+    actuators = value.get("actuator", [])
+    actuators = _string_list([actuators] if isinstance(actuators, str) else actuators, f"{where}.actuator")
+    command = _field(value, "command", list, where)
+    # One actuator's commands, or a list per actuator (a gripper with an actuator for each finger).
+    tables = command if command and all(isinstance(row, list) for row in command) else [command]
+    command = tuple(_numbers(row, f"{where}.command[{i}]") for i, row in enumerate(tables))
+    if actuators and len(actuators) != len(command):
+        raise DescriptionError(
+            f"{where}.command: one list of commands per actuator ({len(actuators)}), got {len(command)}"
+        )
+    if len(opening) < 2 or any(len(row) != len(opening) for row in command):
         raise DescriptionError(f"{where}: opening and command must be matching lists of 2 or more numbers")
-    for name, values in (("opening", opening), ("command", command)):
+    for name, values in (("opening", opening), *(("command", row) for row in command)):
         steps = [b - a for a, b in itertools.pairwise(values)]
         if not (all(step > 0 for step in steps) or all(step < 0 for step in steps)):
             raise DescriptionError(f"{where}.{name}: must rise or fall strictly, got {list(values)}")
@@ -318,7 +328,9 @@ def _gripper(value: Any, where: str) -> GripperSpec:
         )
     pads = value.get("pads")
     if not isinstance(pads, list) or len(pads) != 2:
-        raise DescriptionError(f"{where}.pads: expected two lists of geom names (one per side), got {pads!r}")
+        raise DescriptionError(
+            f"{where}.pads: expected two lists of geom or body names (one per side), got {pads!r}"
+        )
     sides = tuple(_string_list(side, f"{where}.pads[{i}]") for i, side in enumerate(pads))
     if not all(sides):
         raise DescriptionError(f"{where}.pads: each side needs at least one geom")
@@ -327,7 +339,7 @@ def _gripper(value: Any, where: str) -> GripperSpec:
         raise DescriptionError(f"{where}.still_speed: must be a number above 0, got {still_speed!r}")
     return GripperSpec(
         group=_field(value, "group", str, where),
-        actuator=_field(value, "actuator", str, where),
+        actuators=actuators,
         opening=opening,
         command=command,
         open=float(grasp_open),

@@ -1,10 +1,11 @@
 """A gripper compiled against a model: opening in metres, whatever its actuator takes as command.
 
-Grippers differ in what their actuator's command means: AILA's position actuator takes the opening of each
-finger in metres, the Robotiq 2F-85's takes 0 (open) to 255 (closed) on a tendon over two driver joints.
-Skills speak only of the opening - metres per finger, half the aperture between the pads - and the
-description's table of matching openings and commands (measured on the model, see each robot's README)
-translates, piecewise linearly, in both directions.
+Grippers differ in what their actuators' commands mean: AILA's position actuator takes the opening of each
+finger in metres, the Robotiq 2F-85's takes 0 (open) to 255 (closed) on a tendon over two driver joints, and
+a gripper with an actuator per finger takes a position for each. Skills speak only of the opening - metres
+per finger, half the aperture between the pads - and the description's table of matching openings and
+commands (one column per actuator, measured on the model, see each robot's README) translates, piecewise
+linearly, in both directions.
 """
 
 from __future__ import annotations
@@ -23,8 +24,9 @@ class Gripper:
 
     Attributes:
         group: the fingers' joint group (their velocities tell when the fingers have settled).
-        actuator: index of the actuator in ``MjData.ctrl``.
-        opening, command: the description's matching table, sorted by opening (both read-only).
+        actuators: indices of its actuators in ``MjData.ctrl``.
+        opening, command: the description's matching table, sorted by opening (both read-only): openings
+            (k,) and commands (k, actuators).
         open: the opening that grasps and releases (m per finger).
         pads: geom ids of each side's pads (a grasp needs both sides touching).
         limits: the opening's velocity, acceleration and jerk limits (m/s^k per finger).
@@ -32,7 +34,7 @@ class Gripper:
     """
 
     group: str
-    actuator: int
+    actuators: np.ndarray
     opening: np.ndarray
     command: np.ndarray
     open: float
@@ -51,17 +53,21 @@ class Gripper:
         return float(self.opening[-1])
 
     def command_for(self, opening):
-        """The actuator command(s) that hold the fingers at ``opening`` (clipped to the table's range)."""
-        return np.interp(opening, self.opening, self.command)
+        """The actuators' commands that hold the fingers at ``opening`` (clipped to the table's range): one
+        per actuator, along the last axis."""
+        return np.stack([np.interp(opening, self.opening, column) for column in self.command.T], axis=-1)
 
     def opening_for(self, command):
-        """The opening(s) that the actuator command(s) ``command`` hold."""
-        order = np.argsort(self.command)
-        return np.interp(command, self.command[order], self.opening[order])
+        """The opening(s) that the first actuator's command(s) ``command`` hold (the others' follow the
+        table)."""
+        first = self.command[:, 0]
+        order = np.argsort(first)
+        return np.interp(command, first[order], self.opening[order])
 
 
 def measure_openings(robot, arm: str | None, commands, settle: float = 3.0) -> np.ndarray:
-    """The opening (m per finger) that each actuator command holds with nothing in the hand: from the
+    """The opening (m per finger) that each row of ``commands`` (one command per actuator) holds with
+    nothing in the hand: from the
     robot's home keyframe the command is applied for ``settle`` s of simulated time, then the smallest
     distance between a pad of one side and a pad of the other (MuJoCo's ``mj_geomDistance``, exact for
     boxes and convex meshes) is halved. This is how each robot's opening/command table is made (its README
@@ -74,9 +80,9 @@ def measure_openings(robot, arm: str | None, commands, settle: float = 3.0) -> n
         raise InputError(f"robot {robot.name!r}: arm {arm.name!r} has no gripper")
     data = mujoco.MjData(model)
     openings = []
-    for command in np.atleast_1d(commands):
+    for command in np.asarray(commands, dtype=float).reshape(-1, len(gripper.actuators)):
         robot.reset(data)
-        data.ctrl[gripper.actuator] = command
+        data.ctrl[gripper.actuators] = command
         for _ in range(round(settle / model.opt.timestep)):
             mujoco.mj_step(model, data)
         gap = min(

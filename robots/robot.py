@@ -19,7 +19,7 @@ import numpy as np
 
 from besman.robots.assembly import build_spec
 from besman.robots.catalogue import ROBOT, describe
-from besman.robots.description import DescriptionError, RobotDescription
+from besman.robots.description import DescriptionError, GripperSpec, RobotDescription
 from besman.robots.gripper import Gripper
 from besman.skills.errors import InputError, UnknownNameError
 from besman.skills.validation import checked, instance, optional, text
@@ -186,31 +186,56 @@ class Robot:
             raise DescriptionError(f"{where}.tcp: the model has no site {spec.tcp.site!r}")
         gripper = None
         if spec.gripper is not None:
-            description = spec.gripper
-            actuator = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, description.actuator)
-            if actuator < 0:
-                raise DescriptionError(
-                    f"{where}.gripper.actuator: the model has no actuator {description.actuator!r}"
-                )
-            pads = []
-            for side in description.pads:
-                ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom) for geom in side]
-                if min(ids) < 0:
-                    missing = side[ids.index(min(ids))]
-                    raise DescriptionError(f"{where}.gripper.pads: the model has no geom {missing!r}")
-                pads.append(_frozen(ids, int))
-            order = np.argsort(description.opening)
-            gripper = Gripper(
-                group=description.group,
-                actuator=actuator,
-                opening=_frozen(np.asarray(description.opening)[order]),
-                command=_frozen(np.asarray(description.command)[order]),
-                open=description.open,
-                pads=(pads[0], pads[1]),
-                limits=description.limits,
-                still_speed=description.still_speed,
-            )
+            gripper = self._compile_gripper(spec.gripper, f"{where}.gripper")
         return RobotArm(name, spec.groups, spec.tcp.site, gripper)
+
+    def _compile_gripper(self, description: GripperSpec, where: str) -> Gripper:
+        model = self.model
+        if description.actuators:
+            named = description.actuators
+            actuators = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in named]
+            if min(actuators) < 0:
+                missing = named[actuators.index(min(actuators))]
+                raise DescriptionError(f"{where}.actuator: the model has no actuator {missing!r}")
+        else:  # those that drive the fingers' joints (named or not)
+            actuators = list(self.group(description.group).actuator_indices)
+        if len(actuators) != len(description.command):
+            names = ", ".join(model.actuator(a).name or f"#{a} (unnamed)" for a in actuators)
+            raise DescriptionError(
+                f"{where}: {len(actuators)} actuators drive the fingers ({names}): command needs a list of "
+                f"commands for each, in that order (it has {len(description.command)})"
+            )
+        pads = tuple(_frozen(self._pad_geoms(side, f"{where}.pads"), int) for side in description.pads)
+        order = np.argsort(description.opening)
+        return Gripper(
+            group=description.group,
+            actuators=_frozen(actuators, int),
+            opening=_frozen(np.asarray(description.opening)[order]),
+            command=_frozen(np.asarray(description.command).T[order]),
+            open=description.open,
+            pads=(pads[0], pads[1]),
+            limits=description.limits,
+            still_speed=description.still_speed,
+        )
+
+    def _pad_geoms(self, names: tuple[str, ...], where: str) -> list[int]:
+        """The geoms of one side's pads: each name a geom, or a body whose colliding geoms are pads (finger
+        geoms a model leaves unnamed)."""
+        model, geoms = self.model, []
+        for name in names:
+            geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+            if geom >= 0:
+                geoms.append(geom)
+                continue
+            body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+            if body < 0:
+                raise DescriptionError(f"{where}: the model has no geom or body {name!r}")
+            colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+            found = np.flatnonzero((model.geom_bodyid == body) & colliding)
+            if len(found) == 0:
+                raise DescriptionError(f"{where}: body {name!r} has no geom that collides")
+            geoms.extend(int(geom) for geom in found)
+        return geoms
 
     def _actuated_dofs(self, actuator: int) -> set[int]:
         """The DOFs an actuator's transmission acts on (joint or fixed tendon)."""

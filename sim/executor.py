@@ -181,7 +181,7 @@ class Executor:
         data.ctrl[self.arm.actuator_indices] = self.stream.position
         if self.gripper_stream is not None:
             gripper = self.arm.gripper
-            self.gripper_stream.reset([gripper.opening_for(data.ctrl[gripper.actuator])])
+            self.gripper_stream.reset([gripper.opening_for(data.ctrl[gripper.actuators[0]])])
         self.monitor.reset(data)
         self.motion = None
 
@@ -361,12 +361,12 @@ def _simulate(
     model, data, step = world.model, world.data, mujoco.mj_step
     ctrl, qpos = data.ctrl, data.qpos
     rows = len(plans[0].states)
-    # Per arm: its actuators and commanded positions, its gripper actuator and commands (or None).
+    # Per arm: its actuators and commanded positions, its gripper's actuators and commands (or None).
     drives = [
         (
             member.arm.actuator_indices,
             plan.states[:, 0] + member._lead * plan.states[:, 1],
-            None if plan.gripper is None else member.arm.gripper.actuator,
+            None if plan.gripper is None else member.arm.gripper.actuators,
             None if plan.gripper is None else member.arm.gripper.command_for(plan.gripper[:, 0, 0]),
         )
         for member, plan in zip(members, plans, strict=True)
@@ -379,10 +379,10 @@ def _simulate(
     joints = [member.arm.qpos_indices for member in members]
     times, cycle_steps = np.empty(rows), range(substeps)
     for row in range(rows):
-        for actuators, positions, gripper_actuator, commands in drives:
+        for actuators, positions, gripper_actuators, commands in drives:
             ctrl[actuators] = positions[row]
             if commands is not None:
-                ctrl[gripper_actuator] = commands[row]
+                ctrl[gripper_actuators] = commands[row]
         for _ in cycle_steps:
             step(model, data)
         times[row] = data.time

@@ -46,7 +46,7 @@ def test_the_grippers_opening_table_is_what_the_model_does(ur5e):
     commands = np.array([7.5, 100.0, 187.5, 232.5])
     measured = measure_openings(ur5e, None, commands)
     np.testing.assert_allclose(gripper.opening_for(commands), measured, atol=3e-4)
-    np.testing.assert_allclose(gripper.command_for(gripper.opening_for(commands)), commands)
+    np.testing.assert_allclose(gripper.command_for(gripper.opening_for(commands))[:, 0], commands)
     assert gripper.upper == pytest.approx(0.0425, abs=5e-4)  # the 85 mm stroke, per finger
 
 
@@ -72,7 +72,21 @@ def test_bad_arm_and_gripper_descriptions_name_the_field(tmp_path):
         ),
         (("arms", "arm", "gripper", "open"), 0.2, "arms.arm.gripper.open: must lie in the opening's range"),
         (("arms", "arm", "gripper", "command"), [0, 1], "opening and command must be matching lists"),
-        (("arms", "arm", "gripper", "pads"), [["gripper/right_pad1"]], "expected two lists of geom names"),
+        (
+            ("arms", "arm", "gripper", "pads"),
+            [["gripper/right_pad1"]],
+            "expected two lists of geom or body names",
+        ),
+        (
+            ("arms", "arm", "gripper", "pads"),
+            [["gripper/thumb"], ["gripper/left_pad1"]],
+            "no geom or body 'gripper/th",
+        ),
+        (
+            ("arms", "arm", "gripper", "command"),
+            [list(range(18)), list(range(18))],  # a list per actuator: the 2F-85 has one
+            r"gripper.command: one list of commands per actuator \(1\), got 2",
+        ),
         (("arms", "arm", "gripper", "still_speed"), 0, "gripper.still_speed: must be a number above 0"),
         (
             ("arms", "arm", "gripper", "actuator"),
@@ -89,13 +103,13 @@ def test_bad_arm_and_gripper_descriptions_name_the_field(tmp_path):
         ),
         (("options", "cone"), "round", "options.cone: one of pyramidal, elliptic"),
     ]
-    for path, value, message in cases:
+    for index, (path, value, message) in enumerate(cases):
         changed = json.loads(json.dumps(description))
         place = changed
         for key in path[:-1]:
             place = place[key]
         place[path[-1]] = value
-        folder = tmp_path / "_".join(path)
+        folder = tmp_path / f"{index}_{'_'.join(path)}"
         folder.mkdir()
         (folder / "description.json").write_text(json.dumps(changed))
         with pytest.raises(DescriptionError, match=message) as error:
@@ -106,7 +120,7 @@ def test_bad_arm_and_gripper_descriptions_name_the_field(tmp_path):
 def test_tasks_show_the_pick_and_place_box_of_each_robot(capsys):
     code, out, _ = run_cli(capsys, "robots", "show", "ur5e", "--json")
     table = json.loads(out)
-    assert code == 0 and table["arms"]["arm"]["gripper"]["actuator"] == "gripper/fingers_actuator"
+    assert code == 0 and table["arms"]["arm"]["gripper"]["actuator"] == ["gripper/fingers_actuator"]
     bounds = task("pick-place").bounds("ur5e").as_dict()
     areas = [bounds[name] for name in ("object_x", "object_y", "place_x", "place_y")]
     assert areas == [[0.35, 0.52], [-0.10, 0.05], [0.32, 0.49], [-0.45, -0.31]]

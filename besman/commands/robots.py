@@ -58,7 +58,7 @@ def _robot_table(name: str) -> dict:
                 "gripper": None
                 if arm.gripper is None
                 else {
-                    "actuator": robot.model.actuator(arm.gripper.actuator).name,
+                    "actuator": [robot.model.actuator(a).name for a in arm.gripper.actuators],
                     "opening_m": [arm.gripper.lower, arm.gripper.upper],
                     "open_m": arm.gripper.open,
                 },
@@ -124,12 +124,13 @@ def _robots_gripper(args: argparse.Namespace) -> int:
     gripper = robot.arm(args.arm).gripper
     if gripper is None:
         raise InputError(f"robot {robot.name!r}: arm {robot.arm(args.arm).name!r} has no gripper")
-    low, high = float(gripper.command.min()), float(gripper.command.max())
-    commands = np.linspace(low, high, args.steps)
+    # From the table's one end to the other, every actuator at once (rows: one command per actuator).
+    commands = np.linspace(gripper.command[0], gripper.command[-1], args.steps)
     openings = measure_openings(robot, args.arm, commands)
+    columns = [[round(float(c), 4) for c in column] for column in commands.T]
     table = {
         "opening": [round(float(v), 5) for v in openings],
-        "command": [round(float(c), 4) for c in commands],
+        "command": columns[0] if len(columns) == 1 else columns,
     }
     print(json.dumps(table))
     return 0
