@@ -65,3 +65,12 @@ def forward_kinematics(robot: Robot, qpos: np.ndarray, site: str, data: mujoco.M
     data.qpos[:] = qpos
     mujoco.mj_kinematics(robot.model, data)
     return site_pose(robot.model, data, site)
+
+
+def bodies_below(model: mujoco.MjModel, roots) -> np.ndarray:
+    """Per body: whether it is one of ``roots`` (body ids) or hangs from one."""
+    below = np.zeros(model.nbody, dtype=bool)
+    below[roots] = True
+    for body in range(1, model.nbody):  # parents come before their children
+        below[body] |= below[model.body_parentid[body]]
+    return below

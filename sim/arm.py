@@ -76,12 +76,14 @@ class Arm:
         root = model.body_rootid[model.jnt_bodyid[model.joint(self.joints[0]).id]]
         self._robot_body = model.body_rootid == root  # per body: part of the robot
         # The geoms the arm's joints move, and the furniture (the world body's own geoms), that collide.
-        moved = _subtrees(model, [model.jnt_bodyid[model.joint(name).id] for name in self.joints])
+        moved = robots.kinematics.bodies_below(
+            model, [model.jnt_bodyid[model.joint(name).id] for name in self.joints]
+        )
         colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
         self._moved_geoms = np.flatnonzero(moved[model.geom_bodyid] & colliding)
         self._furniture = np.flatnonzero((model.geom_bodyid == 0) & colliding)
         # The hand: the tool frame's body and what hangs from it (the fingers).
-        self._hand_body = _subtrees(model, [model.site_bodyid[self._site_id]])
+        self._hand_body = robots.kinematics.bodies_below(model, [model.site_bodyid[self._site_id]])
         self._fromto = np.empty(6)
 
     @property
@@ -220,12 +222,3 @@ class Arm:
                 np.cbrt(jerk / self.max_jerk).max(),
             )
         )
-
-
-def _subtrees(model: mujoco.MjModel, roots) -> np.ndarray:
-    """Per body: whether it is one of ``roots`` or hangs from one."""
-    below = np.zeros(model.nbody, dtype=bool)
-    below[roots] = True
-    for body in range(1, model.nbody):  # parents come before their children
-        below[body] |= below[model.body_parentid[body]]
-    return below

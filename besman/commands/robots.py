@@ -136,6 +136,26 @@ def _robots_gripper(args: argparse.Namespace) -> int:
     return 0
 
 
+def _robots_check(args: argparse.Namespace) -> int:
+    """Each check of :mod:`besman.tasks.robot_check` as it finishes: a line each (or JSON lines); 1 if
+    any failed."""
+    from besman.tasks.robot_check import check_robot
+
+    failed = 0
+    for finding in check_robot(args.name):
+        failed += not finding.passed
+        if args.json:
+            print(json.dumps(finding.__dict__), flush=True)
+            continue
+        verdict = "ok  " if finding.passed else "FAIL"
+        print(f"{verdict} {finding.arm}: {finding.check}: {finding.measured}", flush=True)
+        if not finding.passed:
+            print(f"     to change: {finding.fix}", flush=True)
+    if not args.json:
+        print("all checks passed" if not failed else f"{failed} check(s) failed", flush=True)
+    return 1 if failed else 0
+
+
 def register(commands) -> None:
     """Adds this module's commands to the parser's subcommands."""
     robots = commands.add_parser("robots", help="list, describe and render the robot models")
@@ -162,3 +182,11 @@ def register(commands) -> None:
         "--steps", type=integer(2), default=18, help="how many commands, evenly spaced (default 18)"
     )
     gripper.set_defaults(handler=_robots_gripper)
+    check = robot_commands.add_parser(
+        "check",
+        help="check a robot for the tabletop tasks (home, tool frame, gripper, reach, limits, one "
+        "pick and place), a line per check with what to change",
+    )
+    check.add_argument("name", help="a robot's name or folder")
+    check.add_argument("--json", action="store_true", help="a JSON line per check")
+    check.set_defaults(handler=_robots_check)

@@ -1,0 +1,363 @@
+"""Checking a robot for the tabletop tasks: what its description must get right, one check at a time.
+
+``besman robots check ROBOT`` runs these on each arm with a gripper and prints a line per check with its
+verdict, what it measured and what to change: what a user bringing an arm would otherwise find one failed
+demo at a time.
+
+- **home**: the home keyframe points the first arm's hand down (the tool frame's z axis): its planner starts
+  inverse kinematics there.
+- **tool frame**: its y axis runs along the fingers' closing, and it sits between the fingertips: the
+  planner grasps 1 cm above an object's centre, so the fingertips must not reach the table under the task's
+  object (nor further than :data:`~besman.sim.manipulation.FINGER_DEPTH`, which its approach allows for)
+  and the pads must cover at least :data:`PAD_OVERLAP` of the object's height.
+- **gripper**: opening and closing moves the pads of both sides; at its ``open`` opening the pads are as far
+  apart as the opening table says.
+- **holds**: the pads close on the task's object from both sides.
+- **reach**: the first arm reaches the task's object area (on the table) and place area (on the shelf)
+  top-down, at their corners and middles.
+- **limits**: every joint follows a move at its velocity, acceleration and jerk limits within half the
+  executor's following tolerance (a position actuator lags its command by its speed times kv / kp).
+- **pick-place**: the first arm picks the task's object at the middle of the object area and places it at
+  the middle of the place area.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from functools import partial
+
+import mujoco
+import numpy as np
+
+from besman.robots.catalogue import describe
+from besman.robots.kinematics import bodies_below
+from besman.sim.arm import Arm
+from besman.sim.executor import Executor, ExecutorConfig
+from besman.sim.hand import Hand
+from besman.sim.manipulation import DEFAULT_PLAN, FINGER_DEPTH, heights
+from besman.sim.motions import MoveTo
+from besman.sim.primitives import top_down
+from besman.sim.world import World, tabletop_world
+
+REACH_YAWS = np.radians([0.0, 90.0, 45.0, -45.0])  # hand yaws a reach is tried at (a cube's grasps)
+HOME_TILT = 10.0  # deg the home's tool z axis may lean from straight down
+CLOSING_TILT = 15.0  # deg the line between the pads may lean from the tool frame's y axis
+OPENING_SLACK = 0.002  # m the measured opening may differ from the table's at ``open``
+# m the hand may reach past its pads along the tool frame's z axis: farther, the axis points into the hand.
+INTO_HAND = 0.03
+PAD_OVERLAP = 0.01  # m of the object's height that the pads must cover when grasping it
+SIDE_TRAVEL = 0.25  # of the opening's range that each side's pads must travel between closed and open
+SETTLE = 1.5  # s the fingers get to settle at a command
+LAG_SHARE = 0.75  # of the executor's following tolerance that a joint may lag at its limits
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One check of one arm: whether it passed, what it measured, and what to change if it did not."""
+
+    arm: str
+    check: str
+    passed: bool
+    measured: str
+    fix: str = ""
+
+
+def check_robot(robot: str) -> Iterator[Finding]:
+    """The checks of the module documentation on ``robot`` (a name or a folder), one finding at a time."""
+    from besman.tasks import task
+    from besman.tasks.pick_place import DEFAULT_OBJECT, areas, family, the_object
+
+    description = describe(robot)
+    first = next(iter(description.arms), None)
+    if areas(robot) is None:
+        yield Finding(
+            first or "-",
+            "the task's areas",
+            False,
+            "the description gives no place area for pick-place: the reach and pick-place checks are skipped",
+            f"add tasks.pick-place.places (x and y ranges on the shelf) to {description.file}",
+        )
+        widths = family(robot).width  # the 6 cm box, as narrow as the gripper needs
+        size = [min(DEFAULT_OBJECT["size"][0], widths[1])] * 2 + [DEFAULT_OBJECT["size"][2]]
+        values = {"shape": np.array([0.0]), "size": np.array(size)}
+    else:
+        values = task("pick-place").default_values(robot)
+    item = the_object(robot, values, None)
+    world = tabletop_world((item,), robot=robot)
+    for name, spec in description.arms.items():
+        field = f"{description.file}: arms.{name}"
+        if spec.gripper is None:
+            continue
+        checks = []
+        if name == first and areas(robot) is not None:  # the arm that works alone, on the task's areas
+            reach, places = areas(robot)
+            grasp_z, _, place_z = heights(world, item, DEFAULT_PLAN)
+            checks.append(partial(_home, world, name, field, [*np.mean(reach, axis=1), grasp_z]))
+        checks += [
+            partial(_closing, world, name, field),
+            partial(_fingertips, world, name, field, item),
+            partial(_both_sides, world, name, field),
+            partial(_opening, world, name, field),
+            partial(_holds, world, name, item),
+            partial(_limits, world, name, description.file),
+        ]
+        if name == first and areas(robot) is not None:
+            checks += [
+                partial(
+                    _reach, world, name, "object area", reach, grasp_z, f"{description.file}: tabletop.reach"
+                ),
+                partial(_reach, world, name, "place area", places, place_z, "the task's places"),
+                partial(_pick_place, world, values),
+            ]
+        for check in checks:
+            world.reset()
+            yield check()
+
+
+def _home(world: World, name: str, field: str, middle) -> Finding:
+    """The home's hand pointing down, or turned down from there by inverse kinematics without restarts at
+    ``middle`` (the planner solves its first pose from home)."""
+    arm = Arm(world, name)
+    down = arm.site_pose(arm.home).rotation[:, 2]
+    tilt = float(np.degrees(np.arccos(np.clip(-down[2], -1.0, 1.0))))
+    turned = tilt <= HOME_TILT or arm.solve_ik(middle, top_down(0.0), initial=arm.home).success
+    measured = f"the tool frame's z axis is {tilt:.0f} deg from straight down"
+    if tilt > HOME_TILT:
+        reached = "reaches" if turned else "does not reach"
+        measured += f"; inverse kinematics from there {reached} the object area's middle hand down"
+    return Finding(
+        name,
+        "home points the hand down",
+        turned,
+        measured,
+        f"a home keyframe with the hand pointing down (the model's, or the description's home); if the hand "
+        f"does point down there, turn the tool frame so that its z axis points out of the hand ({field}.tcp)",
+    )
+
+
+def _tool_frame(world: World, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The tool frame's position and rotation now (the world's data, forwarded)."""
+    site = world.model.site(world.robot.arm(name).tcp).id
+    return world.data.site_xpos[site].copy(), world.data.site_xmat[site].reshape(3, 3).copy()
+
+
+def _pad_centres(world: World, name: str) -> list[np.ndarray]:
+    """Each side's pads' centre, in the tool frame."""
+    position, rotation = _tool_frame(world, name)
+    return [
+        rotation.T @ (world.data.geom_xpos[side].mean(axis=0) - position)
+        for side in world.robot.arm(name).gripper.pads
+    ]
+
+
+def _closing(world: World, name: str, field: str) -> Finding:
+    one, other = _pad_centres(world, name)
+    line = (one - other) / np.linalg.norm(one - other)
+    tilt = float(np.degrees(np.arccos(min(1.0, abs(line[1])))))
+    return Finding(
+        name,
+        "tool frame's y axis along the closing",
+        tilt <= CLOSING_TILT,
+        f"the line between the pads is {tilt:.0f} deg from the tool frame's y axis",
+        f"turn the tool frame about its z axis until its y axis runs from finger to finger ({field}.tcp)",
+    )
+
+
+def _fingertips(world: World, name: str, field: str, item) -> Finding:
+    """Where the hand's geoms and the pads reach along the tool frame's z axis (out of the hand), against
+    where the task's object stands when the planner grasps it (its centre ``grasp_height`` past the tool
+    frame, the table under it)."""
+    model, data = world.model, world.data
+    gripper = world.robot.arm(name).gripper
+    position, rotation = _tool_frame(world, name)
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+
+    def depths(geoms) -> np.ndarray:  # each geom's box corners, along the tool frame's z
+        reach = []
+        for geom in geoms:
+            centre, half = model.geom_aabb[geom, :3], model.geom_aabb[geom, 3:]
+            corners = data.geom_xpos[geom] + (centre + signs * half) @ data.geom_xmat[geom].reshape(3, 3).T
+            reach.append((corners - position) @ rotation[:, 2])
+        return np.concatenate(reach)
+
+    hand = bodies_below(model, [model.site_bodyid[model.site(world.robot.arm(name).tcp).id]])
+    colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    tip = float(depths(np.flatnonzero(hand[model.geom_bodyid] & colliding)).max())
+    pads = depths(np.concatenate(gripper.pads))
+    centre = DEFAULT_PLAN.grasp_height  # the object's centre, past the tool frame
+    bottom, top = centre + item.half_height, centre - item.half_height
+    deepest = min(FINGER_DEPTH, bottom)  # the planner's allowance; the table
+    overlap = min(pads.max(), bottom) - max(pads.min(), top)
+    measured = (
+        f"the fingertips reach {tip * 1000:.0f} mm past the tool frame (at most {deepest * 1000:.0f}), the "
+        f"pads {pads.min() * 1000:.0f} to {pads.max() * 1000:.0f} mm, the task's object {top * 1000:.0f} to "
+        f"{bottom * 1000:.0f} mm"
+    )
+    if tip > pads.max() + INTO_HAND:
+        fix = "the tool frame's z axis points into the hand: turn it to point out along the fingers"
+    elif tip > deepest:
+        fix = (
+            f"move the tool frame {tip - deepest + 0.005:.3f} m further out along its z axis, toward the tips"
+        )
+    elif overlap < PAD_OVERLAP:
+        fix = "move the tool frame along its z axis to the middle of the pads"
+    else:
+        fix = ""
+    return Finding(
+        name,
+        "tool frame between the fingertips",
+        not fix,
+        measured,
+        f"{fix} ({field}.tcp: a site between the pads, or a body and position)" if fix else "",
+    )
+
+
+def _settle_at(world: World, name: str, opening: float) -> None:
+    """The fingers commanded to ``opening`` from home, the arm held, for :data:`SETTLE` s."""
+    gripper = world.robot.arm(name).gripper
+    world.reset()
+    world.data.ctrl[gripper.actuators] = gripper.command_for(opening)
+    for _ in range(round(SETTLE / world.model.opt.timestep)):
+        mujoco.mj_step(world.model, world.data)
+
+
+def _both_sides(world: World, name: str, field: str) -> Finding:
+    gripper = world.robot.arm(name).gripper
+    centres = []
+    for opening in (gripper.lower, gripper.upper):
+        _settle_at(world, name, opening)
+        centres.append(_pad_centres(world, name))
+    (closed_one, closed_other), (open_one, open_other) = centres
+    line = (open_one - open_other) / np.linalg.norm(open_one - open_other)  # from finger to finger
+    travel = np.abs([(open_one - closed_one) @ line, (open_other - closed_other) @ line])
+    least = SIDE_TRAVEL * (gripper.upper - gripper.lower)
+    return Finding(
+        name,
+        "gripper moves both fingers",
+        bool((travel >= least).all()),
+        f"closed to open, the sides' pads move {travel[0] * 1000:.1f} and {travel[1] * 1000:.1f} mm",
+        "a finger that stays put has an actuator of its own that the gripper does not drive: leave "
+        f"{field}.gripper.actuator out (the actuators of the fingers' joints are found) and give command a "
+        "list per actuator",
+    )
+
+
+def _opening(world: World, name: str, field: str) -> Finding:
+    gripper = world.robot.arm(name).gripper
+    _settle_at(world, name, gripper.open)
+    one, other = (np.asarray(side) for side in gripper.pads)
+    gap = min(
+        mujoco.mj_geomDistance(world.model, world.data, int(a), int(b), 1.0, None) for a in one for b in other
+    )
+    measured = gap / 2
+    return Finding(
+        name,
+        "opening table",
+        abs(measured - gripper.open) <= OPENING_SLACK,
+        f"commanded to open {gripper.open * 1000:.1f} mm per finger, the pads open {measured * 1000:.1f}",
+        f"measure the table on the model (besman robots gripper ROBOT) and paste it into {field}.gripper",
+    )
+
+
+def _holds(world: World, name: str, item) -> Finding:
+    """The object floated (no gravity) between the open pads at the tool frame, the fingers closed."""
+    gripper, hand = world.robot.arm(name).gripper, Hand(world, world.robot.arm(name))
+    gravity = world.model.opt.gravity.copy()
+    world.model.opt.gravity[:] = 0.0
+    try:
+        _settle_at(world, name, gripper.open)
+        position, rotation = _tool_frame(world, name)
+        across = np.arctan2(rotation[1, 1], rotation[0, 1])  # the box's narrow side across the fingers
+        turn = across if item.footprint[0] <= item.footprint[1] else across + np.pi / 2
+        world.set_object_pose(item.name, position, [np.cos(turn / 2), 0.0, 0.0, np.sin(turn / 2)])
+        world.data.ctrl[gripper.actuators] = gripper.command_for(gripper.lower)
+        for _ in range(round(SETTLE / world.model.opt.timestep)):
+            mujoco.mj_step(world.model, world.data)
+        touching = hand.touching(item.name)
+    finally:
+        world.model.opt.gravity[:] = gravity
+    sides = [side for side, touches in zip(("first", "second"), touching, strict=True) if not touches]
+    return Finding(
+        name,
+        "pads close on the task's object",
+        not sides,
+        f"an object {item.narrowest * 1000:.0f} mm across, closed on at the tool frame: "
+        + ("both sides' pads touch it" if not sides else f"the {' and '.join(sides)} side's pads do not"),
+        "name as pads the geoms (or finger bodies) that touch what the hand holds, and put the tool frame "
+        "between them",
+    )
+
+
+def _reach(world: World, name: str, area: str, bounds, z: float, field: str) -> Finding:
+    arm = Arm(world, name)
+    (x0, x1), (y0, y1) = bounds
+    points = [(x0, y0), (x0, y1), (x1, y0), (x1, y1), ((x0 + x1) / 2, (y0 + y1) / 2)]
+    missed = []
+    for x, y in points:
+        solved = [arm.solve_ik([x, y, z], top_down(yaw), initial=arm.home, restarts=4) for yaw in REACH_YAWS]
+        if not any(result.success for result in solved):
+            best = min(solved, key=lambda result: result.position_error)
+            missed.append(f"({x:.2f}, {y:.2f}) by {best.position_error * 1000:.0f} mm")
+    return Finding(
+        name,
+        f"reaches the {area} top-down",
+        not missed,
+        f"{len(points) - len(missed)} of its 5 corners and middle at z {z:.3f} m"
+        + (f"; missed {', '.join(missed)}" if missed else ""),
+        f"shrink the area to what the arm reaches ({field}) or move the robot (mount)",
+    )
+
+
+def _limits(world: World, name: str, file) -> Finding:
+    """Each joint alone from home, far enough to reach its velocity limit (within its range), the lag of
+    the measured joint behind its command watched every control cycle."""
+    config = ExecutorConfig()
+    lags, speeds = [], []
+    for index in range(len(Arm(world, name).joints)):
+        world.reset()
+        executor = Executor(world, name)
+        arm, start = executor.arm, executor.position.copy()
+        speed, accel, jerk = arm.max_velocity[index], arm.max_acceleration[index], arm.max_jerk[index]
+        wanted = speed * speed / accel + speed * accel / jerk  # to full speed and back
+        up, down = arm.upper[index] - start[index], start[index] - arm.lower[index]
+        target = start.copy()
+        target[index] += min(wanted, 0.8 * up) if up >= down else -min(wanted, 0.8 * down)
+        worst = [0.0, 0.0]
+
+        def watch(index=index, worst=worst, executor=executor) -> None:
+            behind = abs(executor.measured_position()[index] - executor.position[index])
+            worst[0] = max(worst[0], behind)
+            worst[1] = max(worst[1], abs(executor.stream.velocity[index]))
+
+        executor.run(MoveTo("limits", target=target), timeout=10.0, observe=watch)
+        lags.append(worst[0])
+        speeds.append(worst[1])
+    joints, allowed = Arm(world, name).joints, LAG_SHARE * config.following_tolerance
+    worst = int(np.argmax(lags))
+    suggested = speeds[worst] * allowed / max(lags[worst], 1e-9)  # the lag grows with the speed
+    return Finding(
+        name,
+        "joints follow their limits",
+        lags[worst] <= allowed,
+        f"the largest lag, {joints[worst]}'s, {lags[worst]:.3f} at {speeds[worst]:.2f}/s "
+        f"(at most {allowed:.3f}: the executor fails a motion at {config.following_tolerance})",
+        f"the model's actuators cannot drive {joints[worst]} that fast: a velocity limit of at most "
+        f"{suggested:.2f} ({file}: limits.{joints[worst]}.velocity), or velocity_feedforward where the "
+        "actuators damp the joint's speed",
+    )
+
+
+def _pick_place(world: World, values: dict) -> Finding:
+    from besman.tasks.pick_place.episode import run_episode
+
+    detail = run_episode(world, values, DEFAULT_PLAN)
+    at, to = (np.round(values[key][:2], 3).tolist() for key in ("object", "place"))
+    placed = "" if detail.placement_error is None else f": placed {detail.placement_error * 100:.1f} cm off"
+    return Finding(
+        world.robot.arm().name,
+        "picks and places at the areas' middles",
+        bool(detail.success),
+        f"object at {at}, place {to}{placed}" + ("" if detail.success else f"; failed at {detail.message}"),
+        "what the failed step's message says (the checks above find most causes one by one)",
+    )

@@ -1,0 +1,91 @@
+"""``besman robots check``: every check passes on a shipped robot, and each is provoked on a copy of the
+UR5e's description changed where a user's description goes wrong (or an inline model), its line naming
+what it measured and what to change."""
+
+import json
+import shutil
+
+from helpers import run_cli
+
+from besman.robots.catalogue import ROBOTS_DIR
+from besman.tasks.robot_check import check_robot
+
+UR5E_PLACES = {"x": [0.32, 0.49], "y": [-0.45, -0.31]}  # the task's numbers for the UR5e, given by the file
+
+
+def ur5e_copy(tmp_path, name: str, change) -> str:
+    folder = tmp_path / name
+    shutil.copytree(ROBOTS_DIR / "ur5e", folder)
+    raw = json.loads((folder / "description.json").read_text())
+    raw["name"] = name
+    raw["tasks"] = {"pick-place": {"places": UR5E_PLACES}}
+    change(raw)
+    (folder / "description.json").write_text(json.dumps(raw))
+    return str(folder)
+
+
+def tool_frame(raw, position, quaternion) -> None:
+    """The tool frame as a new site on the gripper's base (Menagerie's pinch site is 0.145 m out)."""
+    tcp = {"site": "tool", "body": "gripper/base", "position": position, "quaternion": quaternion}
+    raw["arms"]["arm"]["tcp"] = tcp
+    for group in raw["groups"].values():
+        group.pop("site", None)
+
+
+def findings(robot: str) -> dict:
+    return {finding.check: finding for finding in check_robot(robot)}
+
+
+def test_every_check_passes_on_the_shipped_ur5e():
+    found = findings("ur5e")
+    assert len(found) == 10 and [check for check, f in found.items() if not f.passed] == []
+
+
+def test_a_flipped_tool_frame_a_wrong_opening_table_slow_joints_and_a_far_area_are_each_named(tmp_path):
+    def change(raw):
+        tool_frame(raw, [0.0, 0.0, 0.145], [0.0, 1.0, 0.0, 0.0])  # z turned into the hand
+        gripper = raw["arms"]["arm"]["gripper"]
+        gripper["opening"], gripper["open"] = (
+            [o * 0.8 for o in gripper["opening"]],
+            0.032,
+        )  # guessed 20 % short
+        raw["velocity_feedforward"] = False  # the position actuators' damping then lags the joints
+        raw["tabletop"]["table"]["x"] = [0.15, 1.4]
+        raw["tabletop"]["reach"] = {"x": [1.1, 1.3], "y": [-0.1, 0.05]}  # beyond the arm's 0.85 m
+
+    robot = ur5e_copy(tmp_path, "ur5e_faults", change)
+    found = findings(robot)
+    file = f"{robot}/description.json"
+    home = found["home points the hand down"]
+    assert not home.passed and "180 deg from straight down" in home.measured
+    assert f"{file}: arms.arm.tcp" in home.fix
+    tips = found["tool frame between the fingertips"]
+    assert not tips.passed and "z axis points into the hand" in tips.fix
+    table = found["opening table"]
+    assert not table.passed and "commanded to open 32.0 mm per finger, the pads open 40.0" in table.measured
+    assert "besman robots gripper" in table.fix and f"{file}: arms.arm.gripper" in table.fix
+    limits = found["joints follow their limits"]
+    assert (
+        not limits.passed and "velocity limit of at most" in limits.fix and f"{file}: limits." in limits.fix
+    )
+    reach = found["reaches the object area top-down"]
+    assert not reach.passed and "0 of its 5 corners and middle" in reach.measured
+    assert f"{file}: tabletop" in reach.fix
+    assert found["reaches the place area top-down"].passed
+    pick = found["picks and places at the areas' middles"]
+    assert not pick.passed and "reach failed" in pick.measured
+
+
+def test_a_tool_frame_turned_and_short_of_the_fingertips_is_named_and_the_command_exits_1(tmp_path, capsys):
+    half = 2**-0.5
+    robot = ur5e_copy(tmp_path, "ur5e_short", lambda raw: tool_frame(raw, [0, 0, 0.07], [half, 0, 0, half]))
+    code, out, _ = run_cli(capsys, "robots", "check", robot)
+    assert code == 1 and out.strip().endswith("3 check(s) failed")
+    lines = out.splitlines()
+    turned = lines.index(next(line for line in lines if "tool frame's y axis along the closing" in line))
+    assert lines[turned].startswith("FAIL arm: ") and "90 deg from the tool frame's y axis" in lines[turned]
+    assert "turn the tool frame about its z axis" in lines[turned + 1]
+    short = next(i for i, line in enumerate(lines) if "tool frame between the fingertips" in line)
+    assert "the fingertips reach 79 mm past the tool frame (at most 40)" in lines[short]
+    assert "move the tool frame 0.044 m further out along its z axis" in lines[short + 1]
+    assert any(line.startswith("ok   arm: gripper moves both fingers") for line in lines)
