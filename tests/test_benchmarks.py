@@ -9,6 +9,8 @@ import sys
 import pytest
 from helpers import run_benchmark
 
+from besman.cli import build_parser, commands
+
 
 def _ratio_of(entry: dict, ours: str, theirs: str) -> float:
     return entry[theirs] / entry[ours]
@@ -147,13 +149,29 @@ def test_learned_benchmark_compares_the_three_trees_as_json():
         assert row["met"] is None if name == "promp" else row["met"] in (True, False)
 
 
-def test_startup_benchmark_times_every_help_beside_a_bare_python():
+def test_startup_benchmark_times_every_help_listing_and_first_tick_beside_a_bare_python():
     report = run_benchmark("startup.py", "--runs", "1")
-    commands = report["commands"]
-    assert "besman --help" in commands and "besman learn --help" in commands and len(commands) >= 20
-    for numbers in commands.values():
-        assert numbers["over_python_s"] == pytest.approx(numbers["s"] - report["python_s"])
-    assert report["slowest_s"] == max(numbers["s"] for numbers in commands.values())
+    rows = report["commands"]
+    timed = {
+        kind: [name.split()[1:] for name, row in rows.items() if row["kind"] == kind]
+        for kind in report["targets_s"]
+    }
+    assert ["--help"] in timed["help"] and ["learn", "--help"] in timed["help"] and len(timed["help"]) >= 20
+    # Every subcommand that lists, shows or checks is timed with real arguments, and so are the commands
+    # that list without a subcommand of their own.
+    for path, _ in commands(build_parser()):
+        if path and path[-1] in ("ls", "show", "check", "nodes", "schema"):
+            assert any(argv[: len(path)] == list(path) for argv in timed["listing"]), path
+    for argv in (["demo", "--list"], ["tasks"], ["robots"], ["examples"]):
+        assert argv in timed["listing"]
+    assert ["demo"] in timed["first tick"] and any(argv[0] == "run" for argv in timed["first tick"])
+    for row in rows.values():
+        target = report["targets_s"][row["kind"]]
+        assert row["s"] > 0 and row["over_python_s"] == pytest.approx(row["s"] - report["python_s"])
+        assert row["ratio"] == pytest.approx(row["s"] / report["python_s"])
+        assert row["target_s"] == target and row["met"] == (row["s"] < target)
+    assert report["missed"] == [name for name, row in rows.items() if not row["met"]]
+    assert report["met"] == (not report["missed"])
 
 
 def test_the_command_line_loads_without_the_heavy_libraries():

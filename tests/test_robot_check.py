@@ -5,7 +5,7 @@ what it measured and what to change."""
 import json
 import shutil
 
-from helpers import run_cli
+from helpers import PINCER, pincer, run_cli
 
 from besman.robots.catalogue import ROBOTS_DIR
 from besman.tasks.robot_check import check_robot
@@ -89,3 +89,20 @@ def test_a_tool_frame_turned_and_short_of_the_fingertips_is_named_and_the_comman
     assert "the fingertips reach 79 mm past the tool frame (at most 40)" in lines[short]
     assert "move the tool frame 0.044 m further out along its z axis" in lines[short + 1]
     assert any(line.startswith("ok   arm: gripper moves both fingers") for line in lines)
+
+
+def test_one_finger_driven_pads_that_miss_the_object_and_no_place_area_are_named(tmp_path):
+    """The inline pincer with only its left finger's actuator named as the gripper's (the right one stays
+    put) and the arm's link given as the right side's pads."""
+    model = pincer(tmp_path, [0.0, 0.04], actuator="left_drive", pads=[["left_finger"], ["link1"]])
+    named = PINCER.replace('<position joint="left"', '<position name="left_drive" joint="left"')
+    (tmp_path / "pincer.xml").write_text(named)
+    found = findings(model)
+    areas = found["the task's areas"]
+    assert not areas.passed and "tasks.pick-place.places" in areas.fix
+    both = found["gripper moves both fingers"]
+    assert not both.passed and both.measured.endswith(" and 0.0 mm")  # the right finger stays put
+    assert "leave" in both.fix and "gripper.actuator out" in both.fix
+    holds = found["pads close on the task's object"]
+    assert not holds.passed and "the second side's pads do not" in holds.measured
+    assert "reaches the object area top-down" not in found  # no area to reach

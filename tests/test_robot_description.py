@@ -5,6 +5,7 @@ import math
 import shutil
 
 import pytest
+from helpers import pincer
 
 import besman.robots as robots
 from besman.robots.catalogue import ROBOTS_DIR
@@ -232,68 +233,6 @@ def test_the_world_objects_compile_whatever_the_models_compiler_settings(tmp_pat
     body = world.model.body("box").id
     assert world.model.body_mass[body] == pytest.approx(0.15)
     assert world.model.body_inertia[body] == pytest.approx(cube.inertia)
-
-
-PINCER = """
-<mujoco model="pincer">
-  <compiler angle="radian"/>
-  <worldbody>
-    <body name="link1" pos="0 0 0.5">
-      <joint name="j1" axis="0 0 1" range="-1 1"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
-      <body name="hand" pos="0.3 0 0">
-        <site name="tip" pos="0 0 -0.05"/>
-        <body name="left_finger" pos="0 0.01 -0.05">
-          <joint name="left" type="slide" axis="0 1 0" range="0 0.04" damping="2"/>
-          <geom type="box" size="0.005 0.005 0.02" mass="0.05"/>
-        </body>
-        <body name="right_finger" pos="0 -0.01 -0.05">
-          <joint name="right" type="slide" axis="0 -1 0" range="0 0.04" damping="2"/>
-          <geom type="box" size="0.005 0.005 0.02" mass="0.05"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-  <actuator>
-    <position name="j1" joint="j1" kp="10" ctrlrange="-1 1"/>
-    <position joint="left" kp="100" ctrlrange="0 0.04"/>
-    <position joint="right" kp="100" ctrlrange="0 0.04"/>
-  </actuator>
-  <keyframe><key name="home" qpos="0 0 0" ctrl="0 0 0"/></keyframe>
-</mujoco>
-"""
-
-
-def pincer(folder, command):
-    """A one-joint arm with two slide fingers, each driven by an unnamed actuator of its own, and finger
-    geoms without names (as gym-aloha's ViperX and Trossen's WidowX have them)."""
-    limits = {"velocity": 1.0, "acceleration": 2.0, "jerk": 20.0}
-    finger_limits = {"velocity": 0.1, "acceleration": 1.0, "jerk": 10.0}
-    desc = {
-        "schema_version": 2,
-        "name": "pincer",
-        "model": "pincer.xml",
-        "keyframe": "home",
-        "groups": {"arm": {"joints": ["j1"]}, "fingers": {"joints": ["left", "right"]}},
-        "limits": {"j1": limits, "left": finger_limits, "right": finger_limits},
-        "arms": {
-            "arm": {
-                "groups": ["arm"],
-                "tcp": {"site": "tip"},
-                "gripper": {
-                    "group": "fingers",
-                    "opening": [0.005, 0.045],  # the pads 1 cm apart at 0, each finger opens 4 cm more
-                    "command": command,
-                    "open": 0.03,
-                    "pads": [["left_finger"], ["right_finger"]],
-                    "limits": finger_limits,
-                },
-            }
-        },
-    }
-    (folder / "pincer.xml").write_text(PINCER)
-    (folder / "description.json").write_text(json.dumps(desc))
-    return str(folder)
 
 
 def test_a_gripper_with_an_unnamed_actuator_per_finger_and_pads_given_as_bodies(tmp_path):

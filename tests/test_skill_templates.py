@@ -16,9 +16,10 @@ from besman.sim.world import tabletop_world
 from besman.skills import DMP, DMPSettings, MovementPrimitive, zero_shot
 from besman.skills.errors import InputError
 from besman.skills.pool import PoolError, SkillTemplatePool
+from besman.skills.shared_kernel import SharedKernel
 from besman.skills.tasks import TaskBounds
 from besman.skills.template import SkillTemplate
-from besman.skills.template_models import SharedKernel, leave_one_out_means, per_dimension_kernel
+from besman.skills.template_models import leave_one_out_means, per_dimension_kernel
 from besman.trees import Runner, load_tree
 from besman.trees.blackboard import set_task_values
 from tests.helpers import run_cli
