@@ -1,57 +1,71 @@
-"""Robot descriptions: what a MuJoCo model alone does not say about a robot.
+"""Robot descriptions: what a MuJoCo model alone does not say about a robot - the field reference.
 
-An MJCF file knows joints, ranges and actuators, but not which joints form an arm, how fast they may move, or
-which site is the arm's end effector. Each robot folder therefore carries a ``description.json`` beside its
-model::
+An MJCF file knows joints, ranges and actuators, but not which joints form an arm, how fast they may move,
+where the tool is or how the gripper opens. A robot is a folder with a ``description.json`` that says so
+(and a README saying where every number comes from). Position limits are not repeated: they are read from
+the compiled model (``jnt_range``). ``besman robots check FOLDER`` (:mod:`besman.tasks.robot_check`) runs
+the checks that a description must pass for the tabletop tasks and says what to change.
 
-    {
-      "schema_version": 1,
-      "name": "aila",
-      "model": "scene.xml",
-      "keyframe": "home",
-      "groups": {"right_arm": {"joints": ["J_Shoulder1_r", ...], "site": "right_grasp"}, ...},
-      "limits": {"J_Shoulder1_r": {"velocity": 1.5, "acceleration": 4.0, "jerk": 40.0}, ...}
-    }
+Top-level fields (schema version 2; a field the version does not have is refused, not ignored):
 
-Position limits are not repeated here: they are read from the compiled model (``jnt_range``), so the model
-stays the single source of truth for them. Velocity, acceleration and jerk limits are in joint units per
-second (rad/s or m/s, and so on); the README of each robot says where every number comes from.
+- ``schema_version`` (required): 2 (1: only the fields marked "in v1", the model a file beside the
+  description)
+- ``name`` (required; in v1): the robot's name: tasks keep their numbers by it; pools record it
+- ``title`` (optional; in v1): one line for listings
+- ``model`` (required; in v1): a file beside the description (``"my_arm.xml"``), a Menagerie file
+  ``{"menagerie": "universal_robots_ur5e/ur5e.xml"}`` (found in ``$MENAGERIE_ROOT`` or a package that ships
+  Menagerie folders, never downloaded: :mod:`besman.robots.menagerie`), or a file an installed package ships
+  ``{"package": "trossen-arm-sim", "file": "assets/wxai_follower.xml"}`` (the tail of its path in the
+  package's record of installed files: :mod:`besman.robots.packages`)
+- ``keyframe`` (required; in v1): the keyframe the robot starts in: the planner solves its first poses from
+  there, so the first arm's hand should point down in it, or be turned down from it without restarts
+- ``home`` (optional): ``{joint: position}``: the ``keyframe`` for a model that has none (the model's
+  reference configuration elsewhere; every actuator that drives one joint commanded to it)
+- ``groups`` (required; in v1): ``{name: {"joints": [...], "site": optional, "equalities": optional}}``:
+  ordered joint groups
+- ``limits`` (required; in v1): ``{joint: {"velocity", "acceleration", "jerk"}}`` per joint of every group, in
+  its units per s, s^2, s^3: from the maker's data sheet, and no faster than the model's actuators follow
+  (``robots check`` measures it and suggests a value)
+- ``attach`` (optional): ``[{"model": ..., "site": ..., "prefix": ...}]``: models attached at a site (a
+  gripper on a flange), names prefixed; the keyframe is extended
+- ``options`` (optional): simulation options (``impratio``, ``cone``, ``timestep``, ...) the model or an
+  attached part needs; at attach the parent's win
+- ``mount`` (optional): ``{"position": [x, y, z], "yaw_degrees": deg}``: where the robot's root bodies stand
+  (turned about z, then shifted), however the model orients them
+- ``floor`` (optional): true: besman's floor and lights for a model that has none (a raised mount gets a
+  pedestal)
+- ``velocity_feedforward`` (optional): true: each position command leads by the commanded velocity x kv/kp (an
+  actuator whose damping acts on the joint's velocity lags kv/kp x its speed without it)
+- ``gravity_compensation`` (optional): true: the robot's bodies weightless to its actuators (MuJoCo
+  ``gravcomp``), as an arm's controller does
+- ``exclude`` (optional): ``[[body, body], ...]``: pairs whose contacts are ignored
+- ``arms`` (for tasks): ``{name: arm}``, the first the one that works alone (below)
+- ``tabletop`` (for tasks): ``{"table": board, "shelf": board, "reach": area}``: a board is ``{"height", "x":
+  [lo, hi], "y": [lo, hi]}`` in the robot's frame; ``reach`` is the area of the table where the first arm
+  reaches top-down grasps (tasks draw their objects there)
+- ``tasks`` (for tasks the robot is new to): numbers of tasks by task name, each checked by its task:
+  pick-place's ``{"places": area}`` on the shelf; the handover's ``bar``, ``places``, ``ready``, ``present``
+  (:mod:`besman.tasks.handover`)
 
-Schema version 2 adds what lets any arm run the same skills (version 1 files stay valid):
+An arm: ``{"groups": [...], "tcp": ..., "gripper": ...}``.
 
-- ``"model"`` may name a file inside MuJoCo Menagerie, ``{"menagerie": "universal_robots_ur5e/ur5e.xml"}``
-  (found on this machine by :mod:`besman.robots.menagerie`, never downloaded), or a file that an installed
-  Python package ships, ``{"package": "openarm-mujoco", "file": "v2/openarm_bimanual.xml"}``
-  (:mod:`besman.robots.packages`); ``"home"`` (joint -> position) defines the ``keyframe`` for a model that
-  has none (the actuators that drive those joints commanded there too); ``"attach"`` lists models
-  attached at a site of it (a gripper on a flange: ``{"model": ..., "site": "attachment_site", "prefix":
-  "gripper/"}``; names inside get the prefix, the keyframe is extended). ``"floor"`` adds besman's stage
-  (floor and lights) to a model that has none, ``"mount"`` (``position``, ``yaw_degrees``) moves the robot's
-  root bodies, ``"options"`` sets simulation options (``impratio``, ``cone``, ``timestep``) that an
-  attached part or the model needs, and ``"exclude"`` lists body pairs whose contacts
-  are ignored. ``"velocity_feedforward": true`` adds the commanded velocity times kv/kp to each position
-  actuator's command: such an actuator's damping acts on the joint's velocity, not on its error, so without
-  it a joint lags kv/kp x its speed (0.2 s x speed on MuJoCo Menagerie's UR5e); with it the actuator is a PD
-  controller on the commanded state.
-  ``"gravity_compensation": true`` compensates the weight of the robot's own bodies (MuJoCo's ``gravcomp``),
-  as an arm's controller does; what it holds still weighs.
-- ``"arms"``: per arm its joint groups, its tool-centre point (a site, or ``{"body", "position"}`` that adds
-  one; its z axis points out of the hand, its y axis along the fingers' closing) and its gripper: the joint
-  group of the fingers, the actuator, the map between opening (m per finger, half the aperture between the
-  pads) and actuator command as matching ``opening`` / ``command`` lists, the opening ``open`` that grasps
-  and releases, the pad geoms of each side (``pads``: two lists), the opening's velocity, acceleration and
-  jerk limits, and optionally ``still_speed``, the fingers' joint speed (their joint's units per s, default
-  1e-3) under which closed fingers count as settled (fingers that squeeze an object may creep). With
-  several arms working at once, groups that two arms share (a waist) are held.
-- ``"tabletop"``: the robot's work surface: where the tabletop world puts its table and shelf boards, in
-  the robot's frame (the world's, with the robot standing at the origin), and ``reach``, the area of the
-  table where the first arm reaches top-down grasps (objects start at its middle; tasks draw their objects
-  there).
-- ``"tasks"``: numbers of tasks that do not know this robot, by task name (``{"pick-place": {"places":
-  ...}}``); each task reads and checks its own (:mod:`besman.tasks`). The tasks keep the numbers of the
-  shipped robots themselves. An earlier description's ``tabletop.objects`` is read as ``tabletop.reach``,
-  its ``tabletop.places`` as ``tasks.pick-place.places`` and its ``tabletop.handover`` as
-  ``tasks.handover``.
+- ``tcp``, the tool-centre point: ``{"site": name}``, or ``{"site": new name, "body": name, "position": [x,
+  y, z], "quaternion": [w, x, y, z]}`` that adds a site there. Its z axis points out of the hand (down at a
+  top-down grasp) and its y axis runs from finger to finger; it sits between the pads, where the fingers
+  close: the planner grasps 1 cm above an object's centre, so the fingertips may reach at most 4 cm past
+  the tool frame (less for a short object: not into the table).
+- ``gripper``: ``group`` (the fingers' joints), ``actuator`` (optional: one name or a list; without it, the
+  actuators that drive the fingers' joints, named or not, in joint order), ``opening`` and ``command``:
+  matching monotone lists, the opening in m per finger (half the aperture between the pads) and the
+  actuator's command there, or for several actuators one list of commands per actuator (measure them:
+  ``besman robots gripper FOLDER``); ``open``: the opening that grasps and releases; ``pads``: two lists
+  (one per side) of geom names, or body names whose colliding geoms are pads (fingers with unnamed
+  geoms); ``limits``: the opening's velocity, acceleration and jerk (per finger); ``still_speed``
+  (optional, default 1e-3): the fingers' joint speed under which closed fingers count as settled.
+- With several arms working at once, groups that two arms share (a waist) are held.
+
+An earlier description's ``tabletop.objects`` is read as ``tabletop.reach``, its ``tabletop.places`` as
+``tasks.pick-place.places`` and its ``tabletop.handover`` as ``tasks.handover``.
 """
 
 from __future__ import annotations

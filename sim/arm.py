@@ -188,8 +188,10 @@ class Arm:
         contacts = scratch.contact
         bodies = model.geom_bodyid[contacts.geom]  # (ncon, 2)
         excused = np.isin(bodies, [model.body(name).id for name in allowed]).any(axis=1)
-        found = np.flatnonzero((contacts.dist < 0) & self._robot_body[bodies].any(axis=1) & ~excused)
         hand = self._hand_body
+        # The hand's own parts touching (closed fingers' pads) are the gripper's business, not the arm's.
+        excused |= hand[bodies].all(axis=1)
+        found = np.flatnonzero((contacts.dist < 0) & self._robot_body[bodies].any(axis=1) & ~excused)
         return [
             Contact(
                 "/".join(model.body(b).name for b in bodies[i]),

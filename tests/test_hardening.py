@@ -215,8 +215,10 @@ def test_demo_json_is_json_alone_and_the_prose_suggests_a_next_step(capsys):
     assert code == 0 and summary["success"] and summary["demo"] == summary["task"] == "pick-place"
     measurements = task("pick-place").measurements
     assert summary["kind"] == "besman-run-summary" and set(summary["measurements"]) == set(measurements)
-    code, out, _ = run_cli(capsys, "demo")
-    assert code == 0 and "next:" in out and "besman run examples/trees/grasp_then_place.yaml" in out
+    code, out, _ = run_cli(capsys, "demo", "--seed", "4")
+    assert code == 0 and "next: watch it in the browser (besman demo pick-place --view)" in out
+    # The run it suggests is on another configuration than the one just run.
+    assert "besman run examples/trees/grasp_then_place.yaml --robot aila --seed 5 --log run.jsonl" in out
 
 
 def test_the_halves_of_pick_and_place_are_judged_by_their_tasks_and_place_alone_fails_clearly(capsys):

@@ -200,11 +200,14 @@ def _demo(args: argparse.Namespace) -> int:
     summary, viewers = run_task(args, task=chosen, values=values, log=args.log, demo=chosen.name)
     _print_summary(summary, args.json)
     if not args.json:
+        # Another configuration than the one just run; the browser only where it was not just used.
+        seed = 1 if args.seed is None else args.seed + 1
+        watch = "" if args.view else f"watch it in the browser (besman demo {chosen.name} --view), "
         print(
-            "next: watch it in the browser (besman demo --view), see the other demos (besman demo --list), "
-            "or run the same tree as a file, on another configuration, with a log:\n"
+            f"next: {watch}see the other demos (besman demo --list), or run the same tree as a file, on "
+            "another configuration, with a log:\n"
             "  besman examples --copy .\n"
-            f"  besman run examples/trees/{chosen.tree} --robot {args.robot} --seed 1 --log run.jsonl"
+            f"  besman run examples/trees/{chosen.tree} --robot {args.robot} --seed {seed} --log run.jsonl"
         )
     return serve(viewers, 0 if summary.success else 1)
 
