@@ -31,6 +31,8 @@ def main() -> None:
         page.goto(session.url)
         page.wait_for_function("document.body.innerText.includes('Behaviour tree')", timeout=60_000)
         page.wait_for_timeout(3000)  # software WebGL: the scene fades in
+        # Headless Chromium renders WebGL in software and the page says so: not what a reader's browser shows.
+        page.add_style_tag(content=".mantine-Notifications-root { display: none !important; }")
         page.get_by_role("button", name="Run", exact=True).click()
         page.wait_for_function("document.body.innerText.includes('carry RUNNING')", timeout=60_000)
         page.wait_for_timeout(700)

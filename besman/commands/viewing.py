@@ -84,7 +84,8 @@ def run_task(args: argparse.Namespace, *, task=None, tree=None, values: dict, lo
         **options,
     )
     print(
-        f"viewer: {session.viewer.url} (the run goes at {args.speed:g}x real time)",
+        f"viewer: {session.viewer.url} (the run starts now, at {args.speed:g}x real time; opened later, the "
+        "page's Reset, then Run, runs it again from the start)",
         file=sys.stderr,
         flush=True,
     )
