@@ -12,7 +12,7 @@ demo at a time.
   and the pads must cover at least :data:`PAD_OVERLAP` of the object's height.
 - **gripper**: opening and closing moves the pads of both sides; at its ``open`` opening the pads are as far
   apart as the opening table says.
-- **holds**: the pads close on the task's object from both sides.
+- **holds**: the pads close on the task's object from both sides, and hold it up against its weight.
 - **reach**: the first arm reaches the task's object area (on the table) and place area (on the shelf)
   top-down, at their corners and middles.
 - **limits**: every joint follows a move at its velocity, acceleration and jerk limits within half the
@@ -24,7 +24,7 @@ demo at a time.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import mujoco
@@ -49,6 +49,8 @@ INTO_HAND = 0.03
 PAD_OVERLAP = 0.01  # m of the object's height that the pads must cover when grasping it
 SIDE_TRAVEL = 0.25  # of the opening's range that each side's pads must travel between closed and open
 SETTLE = 1.5  # s the fingers get to settle at a command
+# s a held object settles in the grip, s it is then watched, m it may slide down meanwhile
+HOLD_SETTLE, HOLD_TIME, HOLD_SLIDE = 1.0, 1.0, 0.001
 LAG_SHARE = 0.75  # of the executor's following tolerance that a joint may lag at its limits
 
 
@@ -84,6 +86,7 @@ def check_robot(robot: str) -> Iterator[Finding]:
     else:
         values = task("pick-place").default_values(robot)
     item = the_object(robot, values, None)
+    heaviest = family(robot).mass[1]
     world = tabletop_world((item,), robot=robot)
     for name, spec in description.arms.items():
         field = f"{description.file}: arms.{name}"
@@ -100,6 +103,7 @@ def check_robot(robot: str) -> Iterator[Finding]:
             partial(_both_sides, world, name, field),
             partial(_opening, world, name, field),
             partial(_holds, world, name, item),
+            partial(_keeps_hold, world, name, replace(item, mass=heaviest), field),
             partial(_limits, world, name, description.file),
         ]
         if name == first and areas(robot) is not None:
@@ -260,9 +264,9 @@ def _opening(world: World, name: str, field: str) -> Finding:
     )
 
 
-def _holds(world: World, name: str, item) -> Finding:
-    """The object floated (no gravity) between the open pads at the tool frame, the fingers closed."""
-    gripper, hand = world.robot.arm(name).gripper, Hand(world, world.robot.arm(name))
+def _closed_on(world: World, name: str, item) -> None:
+    """The object floated (no gravity) between the open pads at the tool frame, the fingers closed on it."""
+    gripper = world.robot.arm(name).gripper
     gravity = world.model.opt.gravity.copy()
     world.model.opt.gravity[:] = 0.0
     try:
@@ -274,9 +278,13 @@ def _holds(world: World, name: str, item) -> Finding:
         world.data.ctrl[gripper.actuators] = gripper.command_for(gripper.lower)
         for _ in range(round(SETTLE / world.model.opt.timestep)):
             mujoco.mj_step(world.model, world.data)
-        touching = hand.touching(item.name)
     finally:
         world.model.opt.gravity[:] = gravity
+
+
+def _holds(world: World, name: str, item) -> Finding:
+    _closed_on(world, name, item)
+    touching = Hand(world, world.robot.arm(name)).touching(item.name)
     sides = [side for side, touches in zip(("first", "second"), touching, strict=True) if not touches]
     return Finding(
         name,
@@ -286,6 +294,33 @@ def _holds(world: World, name: str, item) -> Finding:
         + ("both sides' pads touch it" if not sides else f"the {' and '.join(sides)} side's pads do not"),
         "name as pads the geoms (or finger bodies) that touch what the hand holds, and put the tool frame "
         "between them",
+    )
+
+
+def _keeps_hold(world: World, name: str, item, field: str) -> Finding:
+    """Closed on the object, then its weight on: after :data:`HOLD_SETTLE` s to settle in the grip, it must
+    not creep down between the pads (a grip whose contacts cannot carry the weight slides on steadily)."""
+    model, body = world.model, world.model.body(item.name).id
+    saved = model.body_mass[body], model.body_inertia[body].copy()
+    model.body_mass[body], model.body_inertia[body] = item.mass, item.inertia  # the family's heaviest
+    try:
+        _closed_on(world, name, item)
+        heights = []
+        for seconds in (HOLD_SETTLE, HOLD_TIME):
+            for _ in range(round(seconds / model.opt.timestep)):
+                mujoco.mj_step(model, world.data)
+            heights.append(world.object_pose(item.name).position[2])
+    finally:
+        model.body_mass[body], model.body_inertia[body] = saved
+    slid = float(heights[0] - heights[1])
+    return Finding(
+        name,
+        "holds the task's object up",
+        slid <= HOLD_SLIDE,
+        f"{item.mass:.2f} kg, held for {HOLD_TIME:g} s after {HOLD_SETTLE:g} s to settle: it slid "
+        f"{slid * 1000:.1f} mm (at most {HOLD_SLIDE * 1000:.0f})",
+        f"a grip that holds: contact options ({field.split(': ')[0]}: options, e.g. impratio 10 and elliptic "
+        "cones), the pads' friction in the model, or a gripper actuator with more force",
     )
 
 

@@ -4,12 +4,14 @@ what it measured and what to change."""
 
 import json
 import shutil
+from pathlib import Path
 
 from helpers import PINCER, pincer, run_cli
 
 from besman.robots.catalogue import ROBOTS_DIR
 from besman.tasks.robot_check import check_robot
 
+WIDOWX = Path(__file__).resolve().parents[1] / "examples" / "robots" / "widowx_ai"
 UR5E_PLACES = {"x": [0.32, 0.49], "y": [-0.45, -0.31]}  # the task's numbers for the UR5e, given by the file
 
 
@@ -38,7 +40,7 @@ def findings(robot: str) -> dict:
 
 def test_every_check_passes_on_the_shipped_ur5e():
     found = findings("ur5e")
-    assert len(found) == 10 and [check for check, f in found.items() if not f.passed] == []
+    assert len(found) == 11 and [check for check, f in found.items() if not f.passed] == []
 
 
 def test_a_flipped_tool_frame_a_wrong_opening_table_slow_joints_and_a_far_area_are_each_named(tmp_path):
@@ -106,3 +108,18 @@ def test_one_finger_driven_pads_that_miss_the_object_and_no_place_area_are_named
     holds = found["pads close on the task's object"]
     assert not holds.passed and "the second side's pads do not" in holds.measured
     assert "reaches the object area top-down" not in found  # no area to reach
+
+
+def test_a_grip_without_the_contact_options_that_hold_is_named(tmp_path):
+    """The WidowX AI brought without its description's options (MuJoCo's pyramidal cones, impratio 1): the
+    task's heaviest object creeps down between the pads, and nothing else is wrong."""
+    folder = tmp_path / "loose_widowx"
+    shutil.copytree(WIDOWX, folder)
+    raw = json.loads((folder / "description.json").read_text())
+    raw["name"], _ = "loose_widowx", raw.pop("options")
+    (folder / "description.json").write_text(json.dumps(raw))
+    found = findings(str(folder))
+    held = found["holds the task's object up"]
+    assert not held.passed and held.measured.startswith("0.30 kg, held for 1 s after 1 s to settle: it slid")
+    assert "loose_widowx/description.json: options, e.g. impratio 10 and elliptic cones" in held.fix
+    assert [check for check, f in found.items() if not f.passed] == ["holds the task's object up"]
