@@ -76,7 +76,7 @@ class Arm:
         root = model.body_rootid[model.jnt_bodyid[model.joint(self.joints[0]).id]]
         self._robot_body = model.body_rootid == root  # per body: part of the robot
         # The geoms the arm's joints move, and the furniture (the world body's own geoms), that collide.
-        moved = robots.kinematics.bodies_below(
+        moved = self._moved_body = robots.kinematics.bodies_below(
             model, [model.jnt_bodyid[model.joint(name).id] for name in self.joints]
         )
         colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
@@ -189,8 +189,9 @@ class Arm:
         bodies = model.geom_bodyid[contacts.geom]  # (ncon, 2)
         excused = np.isin(bodies, [model.body(name).id for name in allowed]).any(axis=1)
         hand = self._hand_body
-        # The hand's own parts touching (closed fingers' pads) are the gripper's business, not the arm's.
-        excused |= hand[bodies].all(axis=1)
+        # Contacts the arm cannot change are not its collisions: the hand's own parts touching (closed
+        # fingers), or two bodies it does not move (another arm's closed fingers).
+        excused |= hand[bodies].all(axis=1) | ~self._moved_body[bodies].any(axis=1)
         found = np.flatnonzero((contacts.dist < 0) & self._robot_body[bodies].any(axis=1) & ~excused)
         return [
             Contact(

@@ -92,3 +92,52 @@ def test_the_pool_learned_on_the_widowx_folder_places_ten_unseen_tasks():
     taus = np.array([pick_place.draw(str(WIDOWX), rng) for _ in range(10)]).round(4)
     assert json.loads((POOL / "reach.json").read_text())["provenance"]["robot"] == "widowx_ai"
     assert failed_placements(POOL, taus, robot=str(WIDOWX)) == []
+
+
+STAND = """<mujoco model="stand">
+  <compiler angle="radian" autolimits="true"/>
+  <option integrator="implicitfast"/>
+  <worldbody>
+    <body name="stand">
+      <site name="right_mount" pos="0 -0.3 0"/>
+      <site name="left_mount" pos="0 0.3 0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_closed_fingers_touching_are_no_collision_of_either_arm(tmp_path):
+    """The WidowX AI's closed carriages overlap by 0.2 mm: its own hand's parts touching, or another arm's
+    (two of it attached to a stand), are nothing an arm's motion can change, so no pose collides for it."""
+    from besman.sim.arm import Arm
+    from besman.sim.world import tabletop_world
+
+    single = tabletop_world(robot=str(WIDOWX))
+    arm = Arm(single)
+    assert arm.contacts(arm.home) == []
+    raw = json.loads((WIDOWX / "description.json").read_text())
+    arms, groups, limits, home = {}, {}, {}, {}
+    for side in ("right", "left"):
+        named = {name: f"{side}/{name}" for name in ["left_carriage_joint", "right_carriage_joint"]}
+        named |= {f"joint_{i}": f"{side}/joint_{i}" for i in range(6)}
+        groups[f"{side}_arm"] = {"joints": [named[f"joint_{i}"] for i in range(6)]}
+        groups[f"{side}_gripper"] = {"joints": [named["left_carriage_joint"], named["right_carriage_joint"]]}
+        limits |= {named[joint]: value for joint, value in raw["limits"].items()}
+        home |= {named[joint]: value for joint, value in raw["home"].items()}
+        arm = json.loads(json.dumps(raw["arms"]["arm"]).replace('"link_6"', f'"{side}/link_6"'))
+        arm["groups"], arm["tcp"]["site"] = [f"{side}_arm"], f"{side}_tool"
+        arm["gripper"]["group"] = f"{side}_gripper"
+        arm["gripper"]["pads"] = [[f"{side}/carriage_left"], [f"{side}/carriage_right"]]
+        arms[side] = arm
+    raw["attach"] = [
+        {"model": raw["model"], "site": f"{side}_mount", "prefix": f"{side}/"} for side in ("right", "left")
+    ]
+    raw |= {"name": "two_widowx", "model": "stand.xml", "groups": groups, "limits": limits, "home": home}
+    raw |= {"arms": arms, "tasks": {}}
+    (tmp_path / "stand.xml").write_text(STAND)
+    (tmp_path / "description.json").write_text(json.dumps(raw))
+    both = tabletop_world(robot=str(tmp_path))
+    for side in ("right", "left"):
+        arm = Arm(both, side)
+        assert arm.contacts(arm.home) == [], side  # both grippers closed at home, their carriages touching
