@@ -24,52 +24,45 @@ record in :mod:`besman.learning.pipeline_record`, figures by :mod:`besman.learni
 :mod:`besman.learning.figures` writes PNGs).
 """
 
-from besman.learning.changepoints import SegmentationPrior, SegmentModel
-from besman.learning.contextual_search import CREPS, ContextBox, ContextualCMAES, contextual_search
-from besman.learning.demonstration import Demonstration, DemonstrationError, Segment, load
-from besman.learning.imitation import imitate
-from besman.learning.labelling import (
-    DemonstrationSegment,
-    cluster,
-    ground_truth_segments,
-    grouping_accuracy,
-    label_few_shot,
-    segments_of,
-)
-from besman.learning.policy_search import CMAES, XNES, WarmStart, make_optimizer, policy_search
-from besman.learning.preprocessing import SmoothingConfig, hand_pose, resample, smooth
-from besman.learning.segmentation import Segmentation, segment
-from besman.learning.sequences import SequenceResult, refine_sequence
+from besman.learning.contextual_search import contextual_search
+from besman.learning.policy_search import policy_search
+from besman.skills.lazy import lazy_names
 
-__all__ = [
-    "CMAES",
-    "CREPS",
-    "XNES",
-    "ContextBox",
-    "ContextualCMAES",
-    "Demonstration",
-    "DemonstrationError",
-    "DemonstrationSegment",
-    "Segment",
-    "SegmentModel",
-    "Segmentation",
-    "SegmentationPrior",
-    "SequenceResult",
-    "SmoothingConfig",
-    "WarmStart",
-    "cluster",
-    "contextual_search",
-    "ground_truth_segments",
-    "grouping_accuracy",
-    "hand_pose",
-    "imitate",
-    "label_few_shot",
-    "load",
-    "make_optimizer",
-    "policy_search",
-    "refine_sequence",
-    "resample",
-    "segment",
-    "segments_of",
-    "smooth",
-]
+# Where each name lives; imported on first use, so that one module of the package (the recordings' loader,
+# the online refinement a tree leaf uses) does not bring scipy and scikit-learn with it. The two functions
+# named as their modules are imported above: importing a module binds its name in the package, over a lazy
+# name.
+_HOMES = {
+    "CMAES": "policy_search",
+    "CREPS": "contextual_search",
+    "XNES": "policy_search",
+    "ContextBox": "contextual_search",
+    "ContextualCMAES": "contextual_search",
+    "Demonstration": "demonstration",
+    "DemonstrationError": "demonstration",
+    "DemonstrationSegment": "labelling",
+    "Segment": "demonstration",
+    "SegmentModel": "changepoints",
+    "Segmentation": "segmentation",
+    "SegmentationPrior": "changepoints",
+    "SequenceResult": "sequences",
+    "SmoothingConfig": "preprocessing",
+    "WarmStart": "policy_search",
+    "cluster": "labelling",
+    "ground_truth_segments": "labelling",
+    "grouping_accuracy": "labelling",
+    "hand_pose": "preprocessing",
+    "imitate": "imitation",
+    "label_few_shot": "labelling",
+    "load": "demonstration",
+    "make_optimizer": "policy_search",
+    "refine_sequence": "sequences",
+    "resample": "preprocessing",
+    "segment": "segmentation",
+    "segments_of": "labelling",
+    "smooth": "preprocessing",
+}
+__all__ = ["contextual_search", "policy_search", *_HOMES]
+
+
+__getattr__, __dir__ = lazy_names(__name__, _HOMES)

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from scipy.optimize import minimize
 
 from besman.skills.errors import InputError
 from besman.skills.validation import finite_array
@@ -112,6 +111,8 @@ def solve_creps_dual(
         gradient_eta = epsilon + log_mean_exp - weights @ exponents
         gradient_baseline = feature_mean - weights @ baseline_features
         return value, np.concatenate([[gradient_eta * (eta - min_eta)], gradient_baseline])
+
+    from scipy.optimize import minimize  # here, not with the module, which besman.learning imports (0.5 s)
 
     solution = minimize(dual, np.zeros(1 + baseline_features.shape[1]), jac=True, method="BFGS").x
     eta, baseline = temperature(solution[0]), solution[1:]

@@ -26,9 +26,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
-import cma
 import numpy as np
-from scipy.linalg import expm
 
 from besman.skills.errors import InputError
 from besman.skills.seeds import cma_seed
@@ -148,6 +146,8 @@ class CMAES:
 
     @checked(start=WARM_START, seed=SEED, population_size=optional(integer(2)))
     def __init__(self, start: WarmStart, *, seed: int, population_size: int | None = None) -> None:
+        import cma  # here, not with the module, which tree leaves import: pycma brings matplotlib (0.7 s)
+
         n = start.mean.size
         self.population_size = population_size or default_population_size(n)
         self._space = _Whitened(start)
@@ -212,6 +212,8 @@ class XNES:
 
     @checked(rewards=shaped(ndim=1))
     def tell(self, thetas: np.ndarray, rewards: np.ndarray) -> None:
+        from scipy.linalg import expm  # here, not with the module, which tree leaves import (0.3 s)
+
         samples = self._samples
         if samples is None or len(rewards) != len(samples):
             raise InputError("tell() needs the rewards of the population last asked for")

@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from besman.skills.shared_kernel import SharedKernel
 from besman.skills.tasks import TaskBounds
-from besman.skills.template_models import SharedKernel, leave_one_out_means
+from besman.skills.template_models import leave_one_out_means
 
 # Convex mixtures before extrapolating kriging, long length scales before short, smoothing before
 # interpolating; fixed before any run. Length scales from beyond the box to a third of it (twenty tasks in

@@ -16,8 +16,8 @@ from besman.learning.throwing_bench import ThrowingBench
 from besman.learning.throwing_output import RunFolder
 from besman.learning.throwing_spreads import Spreads
 from besman.skills import MovementPrimitive
+from besman.skills.shared_kernel import SharedKernel
 from besman.skills.template import SkillTemplate
-from besman.skills.template_models import SharedKernel
 
 if TYPE_CHECKING:  # the bootstrapped training set is learned from templates of its first tasks
     from besman.learning.throwing_training import TrainingSets

@@ -16,7 +16,7 @@ from besman.learning.throwing_output import RunFolder
 from besman.learning.throwing_spreads import Spreads
 from besman.learning.throwing_templates import TemplateBuilder
 from besman.skills import zero_shot
-from besman.skills.template_models import SharedKernel
+from besman.skills.shared_kernel import SharedKernel
 
 
 def training_set(taus: np.ndarray, results) -> dict[str, np.ndarray]:

@@ -13,15 +13,18 @@ from __future__ import annotations
 
 import copy
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import ruckig
-from scipy.interpolate import CubicSpline
 
 from besman.sim.arm import Arm
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, quaternion
 from besman.skills.errors import InputError
 from besman.skills.transformation import minimum_jerk
+
+if TYPE_CHECKING:
+    from scipy.interpolate import CubicSpline
 
 LIMIT_MARGIN = 1e-3  # rad: how close a shaped movement may come to a joint limit
 
@@ -76,6 +79,8 @@ def straight_line(
             return None
         path.append(result.qpos)
     path = np.array(path)
+    from scipy.interpolate import CubicSpline  # here, not with the module, which tree leaves import (0.4 s)
+
     # The path against time divided by the duration: its derivatives scale with duration^-order.
     unit = CubicSpline(np.linspace(0.0, 1.0, knots), path, axis=0, bc_type="clamped")
     duration = _long_enough(arm, unit, duration, stop_within)

@@ -17,7 +17,6 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from besman.sim.arm import Arm
 from besman.skills import CartesianDMP, MovementPrimitive, Trajectory
@@ -133,6 +132,8 @@ def _cartesian_reference(
                 f"unreachable pose at t={cartesian.times[k]:.3f} s of the primitive: {result.message}"
             )
         joints[row] = result.qpos
+    from scipy.interpolate import CubicSpline  # here, not with the module, which tree leaves import (0.4 s)
+
     spline = CubicSpline(cartesian.times[knots], joints, axis=0, bc_type="clamped")
     positions = np.clip(spline(cartesian.times), arm.lower, arm.upper)
     return Trajectory(cartesian.times, positions, spline(cartesian.times, 1), spline(cartesian.times, 2))

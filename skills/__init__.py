@@ -9,7 +9,8 @@
 - :mod:`besman.skills.template` - skill templates Psi = (Theta, Omega) over the task parameters
   (:mod:`besman.skills.tasks`: task boxes): :mod:`besman.skills.template_models` - Theta as one combination
   of whole training thetas per task (or a Gaussian process per theta dimension) and a per-coordinate
-  uncertainty between a prior exploration and the data; :mod:`besman.skills.zero_shot` - the zero-shot
+  uncertainty between a prior exploration and the data (:mod:`besman.skills.shared_kernel`: the shared
+  model's hyperparameters); :mod:`besman.skills.zero_shot` - the zero-shot
   predictors a template is compared with; :mod:`besman.skills.pool` - the template pool, a directory of
   JSON + NPZ entries, a mapping of names to templates.
 - :mod:`besman.skills.quaternion` - unit quaternions (w, x, y, z); :mod:`besman.skills.validation` - argument

@@ -37,6 +37,7 @@ import numpy as np
 from besman.skills.errors import BesmanError, UnknownNameError
 from besman.skills.primitive import primitive_from_parts, primitive_parts
 from besman.skills.reading import read_bytes
+from besman.skills.shared_kernel import SharedKernel
 from besman.skills.storage import (
     JSON_BYTES,
     check_schema_version,
@@ -49,7 +50,6 @@ from besman.skills.storage import (
 )
 from besman.skills.tasks import TaskBounds
 from besman.skills.template import EXPLORATIONS, SkillTemplate
-from besman.skills.template_models import SharedKernel, per_dimension_kernel
 from besman.skills.validation import PATH, checked, instance
 
 SCHEMA_VERSION = 2
@@ -126,6 +126,8 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
             **{PROTOTYPE + key: value for key, value in prototype_arrays.items()},
         }
         if template.kernel is None:
+            from besman.skills.template_models import per_dimension_kernel  # scikit-learn: only needed here
+
             arrays["hyperparameters"] = template.hyperparameters
             kernel = {
                 "model": "per_dimension",
@@ -283,7 +285,7 @@ def summary(template: SkillTemplate) -> dict:
         "prototype": template.prototype.name,
         "exploration": template.exploration,
         "training_tasks": len(template.taus),
-        "model": template.model.name,
+        "model": template.model_name,
         **(
             {"hyperparameters": np.round(template.hyperparameters, 4).tolist()}
             if template.kernel is None

@@ -29,22 +29,26 @@ Exploration covariances (``exploration=``)
   training thetas (Ledoit-Wolf shrunk): Sigma = D R D.
 
 A template is rebuilt from its training data and its hyperparameters (no pickles; see
-:mod:`besman.skills.pool`).
+:mod:`besman.skills.pool`). Its model is fitted, and its correlations estimated, when first used: reading a
+template (listing a pool) checks its data but imports neither scipy nor scikit-learn.
 """
 
 from __future__ import annotations
 
 import copy
-from typing import Any
+import functools
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from sklearn.covariance import LedoitWolf
 
 from besman.skills.errors import InputError
 from besman.skills.primitive import MovementPrimitive
+from besman.skills.shared_kernel import SharedKernel
 from besman.skills.tasks import TaskBounds
-from besman.skills.template_models import PerDimensionModel, SharedKernel, SharedKernelModel
 from besman.skills.validation import COUNT, SEED, checked, finite_array, instance, text
+
+if TYPE_CHECKING:
+    from besman.skills.template_models import PerDimensionModel, SharedKernelModel
 
 MODELS = ("shared", "per_dimension")
 EXPLORATIONS = ("uncertainty", "weight_proportional", "isotropic", "correlated")
@@ -105,15 +109,15 @@ class SkillTemplate:
             raise InputError(f"the task box must have low < high in every parameter, got {box.as_dict()}")
         if taus.shape[1] != len(box.names):
             raise InputError(f"taus have {taus.shape[1]} columns, the task box {len(box.names)}")
-        if thetas.shape[1] != prototype.theta.size:
+        if thetas.shape[1] != prototype.dmp.n_params:
             raise InputError(
                 f"thetas have {thetas.shape[1]} entries, "
-                f"the prototype {prototype.name!r} {prototype.theta.size}"
+                f"the prototype {prototype.name!r} {prototype.dmp.n_params}"
             )
         self.name, self.prototype, self.box, self.exploration = name, prototype, box, exploration
         self.taus, self.thetas, self.seed, self.task = taus, thetas, seed, task
         self.provenance = dict(provenance or {})
-        inputs = box.normalise(taus)
+        self.model_name = model
         if model == "shared":
             if hyperparameters is not None:
                 raise InputError(
@@ -129,25 +133,34 @@ class SkillTemplate:
                     f"got shape {spread.shape}"
                 )
             self.prior_spread = spread
-            self.model = SharedKernelModel(inputs, thetas, kernel or SharedKernel(), spread**2)
+            self.kernel: SharedKernel | None = kernel or SharedKernel()  # None for the per-dimension model
         else:
             if kernel is not None or prior_spread is not None:
                 raise InputError("kernel= and prior_spread= are the shared model's")
             self.prior_spread = None
-            self.model = PerDimensionModel(inputs, thetas, hyperparameters, seed)
+            self.kernel = None
+            self._given_hyperparameters = hyperparameters  # None: fitted with the model
         typical = np.abs(thetas).mean(axis=0)
         self._typical = np.where(typical > 0, typical, 1e-12)
-        self._correlation = _shrunk_correlation(thetas)
 
-    @property
-    def kernel(self) -> SharedKernel | None:
-        """The shared model's hyperparameters (None for the per-dimension model)."""
-        return self.model.kernel if isinstance(self.model, SharedKernelModel) else None
+    @functools.cached_property
+    def model(self) -> SharedKernelModel | PerDimensionModel:
+        """Theta's model (``model_name``), fitted on first use."""
+        from besman.skills.template_models import PerDimensionModel, SharedKernelModel
+
+        inputs = self.box.normalise(self.taus)
+        if self.kernel is not None:
+            return SharedKernelModel(inputs, self.thetas, self.kernel, self.prior_spread**2)
+        return PerDimensionModel(inputs, self.thetas, self._given_hyperparameters, self.seed)
+
+    @functools.cached_property
+    def _correlation(self) -> np.ndarray:
+        return _shrunk_correlation(self.thetas)
 
     @property
     def hyperparameters(self) -> np.ndarray:
         """The per-dimension model's (n, p) fitted kernel parameters (log scale)."""
-        if not isinstance(self.model, PerDimensionModel):
+        if self.kernel is not None:
             raise InputError(f"template {self.name!r}: the shared model has a kernel, not per-dimension GPs")
         return self.model.hyperparameters
 
@@ -156,6 +169,7 @@ class SkillTemplate:
         other = copy.copy(self)
         if exploration not in EXPLORATIONS:
             raise InputError(f"exploration must be one of {EXPLORATIONS}, got {exploration!r}")
+        other.model = self.model  # fitted once, for both
         other.exploration = exploration
         return other
 
@@ -217,7 +231,7 @@ class SkillTemplate:
     def __repr__(self) -> str:
         return (
             f"SkillTemplate({self.name!r}, task={self.task!r}, K={len(self.taus)}, "
-            f"theta={self.thetas.shape[1]}, model={self.model.name!r}, exploration={self.exploration!r})"
+            f"theta={self.thetas.shape[1]}, model={self.model_name!r}, exploration={self.exploration!r})"
         )
 
 
@@ -230,6 +244,8 @@ def _shrunk_correlation(thetas: np.ndarray) -> np.ndarray:
     correlation = np.eye(n)
     if len(thetas) < 3 or varying.sum() < 2:
         return correlation
+    from sklearn.covariance import LedoitWolf  # 1 s to import: only for the "correlated" exploration
+
     standardised = (thetas[:, varying] - thetas[:, varying].mean(axis=0)) / spread[varying]
     covariance = LedoitWolf(assume_centered=True).fit(standardised).covariance_
     scale = np.sqrt(np.diag(covariance))

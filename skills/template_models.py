@@ -26,9 +26,9 @@ K = 1 the prediction is the one training theta. A variant clips negative weights
 the prediction is then a mixture of learned thetas and never extrapolates beyond them (kriging's negative
 weights can combine feasible throws into an infeasible one). The hyperparameters (l, r, the weights'
 form) are shared by all outputs; they are not fitted by marginal likelihood in theta space, which the
-harmless null-space noise dominates (it picks heavy shrinkage), but given (:class:`SharedKernel`) or
-chosen by the outcome of leave-one-out predictions (:func:`leave_one_out_means`;
-:mod:`besman.learning.template_selection` tries them out).
+harmless null-space noise dominates (it picks heavy shrinkage), but given
+(:class:`~besman.skills.shared_kernel.SharedKernel`) or chosen by the outcome of leave-one-out predictions
+(:func:`leave_one_out_means`; :mod:`besman.learning.template_selection` tries them out).
 
 Omega: per-coordinate spread between a prior and the data
 ----------------------------------------------------------
@@ -54,7 +54,6 @@ maximum marginal likelihood on standardised outputs (scikit-learn), so var_j(x) 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
@@ -64,41 +63,13 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, WhiteK
 
 from besman.skills.errors import InputError
 from besman.skills.seeds import SEEDS
+from besman.skills.shared_kernel import SharedKernel
 from besman.skills.validation import finite_array
 
 LENGTH_SCALE_BOUNDS = (0.05, 20.0)  # in box widths
 AMPLITUDE_BOUNDS = (1e-4, 1e2)  # of the standardised outputs
 NOISE_BOUNDS = (1e-8, 1.0)
 VARIANCE_FLOOR = 1e-300  # a covariance must stay positive definite
-WEIGHT_FORMS = ("kriging", "convex")
-
-
-@dataclass(frozen=True)
-class SharedKernel:
-    """The shared model's hyperparameters.
-
-    length_scale: of the squared-exponential correlation, in box widths. noise: the noise-to-signal
-    variance ratio r (the training thetas are noisy outcomes of a stochastic search). prior_weight: nu0,
-    how many training tasks the prior exploration counts as. weights: ``"kriging"`` (may be negative: the
-    prediction extrapolates beyond the training thetas) or ``"convex"`` (negative weights clipped to zero
-    and the rest renormalised: a mixture of learned thetas, never beyond them). The defaults are fixed,
-    never tuned on a result: the middle length and the larger noise of
-    :data:`besman.learning.template_selection.CANDIDATES`, two tasks, and convex weights (with too few
-    tasks to validate a kernel, nothing is extrapolated).
-    """
-
-    length_scale: float = 0.6
-    noise: float = 0.1
-    prior_weight: float = 2.0
-    weights: str = "convex"
-
-    def __post_init__(self) -> None:
-        if self.weights not in WEIGHT_FORMS:
-            raise InputError(f"kernel weights must be one of {WEIGHT_FORMS}, got {self.weights!r}")
-        for field in ("length_scale", "noise", "prior_weight"):
-            value = getattr(self, field)
-            if not (isinstance(value, int | float) and np.isfinite(value) and value > 0):
-                raise InputError(f"kernel {field} must be a positive number, got {value!r}")
 
 
 class KrigingWeights:

@@ -30,8 +30,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import expm
-from scipy.signal import lfilter
 
 from besman.skills.errors import InputError
 from besman.skills.forcing import ForcingBasis
@@ -178,6 +176,11 @@ class TransformationSystem:
         x_{k+1} = Phi x_k + v_k with v_k = P u_k + R u_{k+1}; the recurrence runs as an IIR filter (scipy's
         lfilter, in C) over all columns at once.
         """
+        # Imported at the first trajectory, not with the module: scipy.signal brings scipy.stats (0.5 s),
+        # which reading a primitive or a pool need not wait for.
+        from scipy.linalg import expm
+        from scipy.signal import lfilter
+
         augmented = np.zeros((4, 4))
         augmented[:2, :2] = self.matrix * h
         augmented[1, 2] = h

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from besman.skills.template_models import SharedKernel
+from besman.skills.shared_kernel import SharedKernel
 
 CRKR_REGULARISATION = 0.5
 

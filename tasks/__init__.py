@@ -22,7 +22,7 @@ from besman.skills.errors import UnknownNameError
 from besman.tasks.base import Task
 
 DEFAULT = "pick-place"  # the task of ``besman demo`` without a name, and of ``besman learn``
-FRAMEWORK = ("base", "running", "session")  # modules of this package that are not tasks
+FRAMEWORK = ("base", "robot_check", "running", "session")  # modules of this package that are not tasks
 
 
 ENTRY_POINTS = "besman.tasks"  # the group under which other distributions name their task modules

@@ -1,0 +1,41 @@
+"""The shared model's hyperparameters (:mod:`besman.skills.template_models`): plain data, apart from the
+models, so that reading a template (listing a pool) imports neither scipy nor scikit-learn, which the fits
+use."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from besman.skills.errors import InputError
+
+WEIGHT_FORMS = ("kriging", "convex")
+
+
+@dataclass(frozen=True)
+class SharedKernel:
+    """The shared model's hyperparameters.
+
+    length_scale: of the squared-exponential correlation, in box widths. noise: the noise-to-signal
+    variance ratio r (the training thetas are noisy outcomes of a stochastic search). prior_weight: nu0,
+    how many training tasks the prior exploration counts as. weights: ``"kriging"`` (may be negative: the
+    prediction extrapolates beyond the training thetas) or ``"convex"`` (negative weights clipped to zero
+    and the rest renormalised: a mixture of learned thetas, never beyond them). The defaults are fixed,
+    never tuned on a result: the middle length and the larger noise of
+    :data:`besman.learning.template_selection.CANDIDATES`, two tasks, and convex weights (with too few
+    tasks to validate a kernel, nothing is extrapolated).
+    """
+
+    length_scale: float = 0.6
+    noise: float = 0.1
+    prior_weight: float = 2.0
+    weights: str = "convex"
+
+    def __post_init__(self) -> None:
+        if self.weights not in WEIGHT_FORMS:
+            raise InputError(f"kernel weights must be one of {WEIGHT_FORMS}, got {self.weights!r}")
+        for field in ("length_scale", "noise", "prior_weight"):
+            value = getattr(self, field)
+            if not (isinstance(value, int | float) and np.isfinite(value) and value > 0):
+                raise InputError(f"kernel {field} must be a positive number, got {value!r}")
