@@ -502,17 +502,6 @@ def test_no_ray_process_outlives_a_learn_killed_with_sigkill(small_pool, tmp_pat
 
 
 @pytest.mark.slow
-def test_the_same_learn_twice_on_one_machine_writes_the_same_pool_byte_for_byte(small_pool, tmp_path):
-    """Determinism where it holds: the small learn run again from scratch, in another process, writes every
-    file as the first run did - the templates (training tasks, thetas, model parameters, provenance), each
-    stage's work files (segments, labels, imitated and retargeted shapes, refined tasks) and the figures.
-    (Across processors and BLAS builds the digits differ; see the full learn below.)"""
-    out = _learn(small_pool.parent / "demos", tmp_path / "pool", *SMALL)
-    assert sorted(SkillTemplatePool(out)) == ["carry", "reach", "return"]
-    assert differing_files(out, small_pool) == []
-
-
-@pytest.mark.slow
 def test_online_refinement_stays_within_its_budget_and_keeps_what_it_found():
     template = SkillTemplatePool(COMMITTED_POOL)["return"]
     task_tau = place_tau((0.6, -0.36, 0.0))

@@ -1,6 +1,6 @@
-"""``besman robots check``: every check passes on a shipped robot, and each is provoked on a copy of the
-UR5e's description changed where a user's description goes wrong (or an inline model), its line naming
-what it measured and what to change."""
+"""``besman robots check``: each check provoked on a copy of the UR5e's or the WidowX AI's description
+changed where a user's description goes wrong (or an inline model), its line naming what it measured and
+what to change (every check passes on the WidowX as brought: tests/test_widowx.py)."""
 
 import json
 import shutil
@@ -36,11 +36,6 @@ def tool_frame(raw, position, quaternion) -> None:
 
 def findings(robot: str) -> dict:
     return {finding.check: finding for finding in check_robot(robot)}
-
-
-def test_every_check_passes_on_the_shipped_ur5e():
-    found = findings("ur5e")
-    assert len(found) == 11 and [check for check, f in found.items() if not f.passed] == []
 
 
 def test_a_flipped_tool_frame_a_wrong_opening_table_slow_joints_and_a_far_area_are_each_named(tmp_path):
