@@ -216,15 +216,16 @@ UR5E_POOL = Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_p
 
 
 @pytest.mark.slow
-def test_the_ur5e_pool_learned_from_people_places_zero_shot_at_thirty_unseen_tasks():
-    """The issue's acceptance: the pool ``besman learn --robot ur5e`` made from the 15 shared recordings
-    (committed) drives the learned tree on the UR5e at 30 tasks drawn from its box that no template was
-    trained on (any position and yaw, size and shape), with the templates' means alone: >= 90 % placed
-    by the task's rule."""
+def test_the_ur5e_pool_learned_from_people_places_zero_shot_at_unseen_tasks():
+    """The pool ``besman learn --robot ur5e`` made from the 15 shared recordings (committed) drives the
+    learned tree on the UR5e at 15 tasks drawn from its box that no template was trained on (any position
+    and yaw, size and shape), with the templates' means alone: >= 90 % placed by the task's rule. (The
+    issue asked 30; ``benchmarks/learned.py --robot ur5e`` measures 100, 100 of them placed; the suite runs
+    15 for its time.)"""
     from helpers import failed_placements
 
     pick_place = task("pick-place")
     rng = np.random.default_rng(2026)
-    taus = np.array([pick_place.draw("ur5e", rng) for _ in range(30)]).round(4)
+    taus = np.array([pick_place.draw("ur5e", rng) for _ in range(15)]).round(4)
     failed = failed_placements(UR5E_POOL, taus, robot="ur5e")
-    assert len(failed) <= 3, failed
+    assert len(failed) <= 1, failed
