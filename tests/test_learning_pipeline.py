@@ -32,7 +32,6 @@ from helpers import (
     process_tree,
     processes_marked,
     run_cli,
-    sigint_by_default,
     snapshot,
     start_marked,
 )
@@ -410,33 +409,6 @@ def test_a_small_learn_writes_templates_with_provenance_and_figures(small_pool):
     assert all(len(run["task_tau"]) == task_columns for run in facts["training"])
     for figure in ("summary.png", "segmentations.png", "learning_curves.png"):
         assert (small_pool / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-
-
-@pytest.mark.slow
-def test_an_interrupted_learn_resumes_to_the_same_pool(small_pool, tmp_path):
-    demos = small_pool.parent / "demos"
-    out = tmp_path / "pool"
-    command = [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(out), *SMALL]
-    errors = (tmp_path / "stderr.txt").open("w")  # not a pipe: nobody reads it while the learn runs
-    process = subprocess.Popen(
-        command, stdout=subprocess.DEVNULL, stderr=errors, preexec_fn=sigint_by_default
-    )
-    deadline = time.monotonic() + 300
-    while not list((out / "work" / "refined").glob("*.json")) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    process.send_signal(signal.SIGINT)  # mid-refinement: one task done, the others running
-    process.wait(timeout=300)  # a hang guard: the workers end their rollouts first
-    errors.close()
-    err = (tmp_path / "stderr.txt").read_text()
-    assert process.returncode == 130 and err.endswith("besman: interrupted (run it again to resume)\n"), err
-    done = list((out / "work" / "refined").glob("*.json"))
-    # Stopped before the templates: what the running workers finished is kept (all of it, on a busy machine).
-    assert len(done) >= 1 and not (out / "reach.json").exists()
-    finished = {p.name: p.read_bytes() for p in done}
-    subprocess.run(command, check=True, capture_output=True)
-    for name, content in finished.items():  # finished work was kept, not redone
-        assert (out / "work" / "refined" / name).read_bytes() == content
-    assert differing_files(out, small_pool) == []  # templates, work files and figures, byte for byte
 
 
 @pytest.mark.slow
