@@ -55,8 +55,8 @@ class Misses:
 
     def __init__(self, arm) -> None:
         self.arm = arm
-        robot = arm.world.robot
-        self.arm_field = f"{robot.description.file}: arms.{arm.robot_arm.name}"
+        self.file = arm.world.robot.description.file
+        self.arm_field = f"{self.file}: arms.{arm.robot_arm.name}"
         self.found: list[Miss] = []
 
     def fits(self, width: float, needed: float) -> None:
@@ -90,7 +90,7 @@ class Misses:
         ]
         turned = np.degrees(result.orientation_error)
         missed = f"the hand stays {result.position_error:.3f} m and {turned:.1f} deg from it"
-        description = self.arm_field.split(": ")[0]
+        description = self.file
         if at_limit:
             check, what = "joint limits", f"{where}: {missed}, {'; '.join(at_limit)}"
             fix = (

@@ -72,7 +72,8 @@ def check_robot(robot: str) -> Iterator[Finding]:
 
     description = describe(robot)
     first = next(iter(description.arms), None)
-    if areas(robot) is None:
+    task_areas = areas(robot)  # (object area, place area), or None
+    if task_areas is None:
         yield Finding(
             first or "-",
             "the task's areas",
@@ -93,8 +94,8 @@ def check_robot(robot: str) -> Iterator[Finding]:
         if spec.gripper is None:
             continue
         checks = []
-        if name == first and areas(robot) is not None:  # the arm that works alone, on the task's areas
-            reach, places = areas(robot)
+        if name == first and task_areas is not None:  # the arm that works alone, on the task's areas
+            reach, places = task_areas
             grasp_z, _, place_z = heights(world, item, DEFAULT_PLAN)
             checks.append(partial(_home, world, name, field, [*np.mean(reach, axis=1), grasp_z]))
         checks += [
@@ -103,10 +104,10 @@ def check_robot(robot: str) -> Iterator[Finding]:
             partial(_both_sides, world, name, field),
             partial(_opening, world, name, field),
             partial(_holds, world, name, item),
-            partial(_keeps_hold, world, name, replace(item, mass=heaviest), field),
+            partial(_keeps_hold, world, name, replace(item, mass=heaviest)),
             partial(_limits, world, name, description.file),
         ]
-        if name == first and areas(robot) is not None:
+        if name == first and task_areas is not None:
             checks += [
                 partial(
                     _reach, world, name, "object area", reach, grasp_z, f"{description.file}: tabletop.reach"
@@ -297,7 +298,7 @@ def _holds(world: World, name: str, item) -> Finding:
     )
 
 
-def _keeps_hold(world: World, name: str, item, field: str) -> Finding:
+def _keeps_hold(world: World, name: str, item) -> Finding:
     """Closed on the object, then its weight on: after :data:`HOLD_SETTLE` s to settle in the grip, it must
     not creep down between the pads (a grip whose contacts cannot carry the weight slides on steadily)."""
     model, body = world.model, world.model.body(item.name).id
@@ -319,8 +320,8 @@ def _keeps_hold(world: World, name: str, item, field: str) -> Finding:
         slid <= HOLD_SLIDE,
         f"{item.mass:.2f} kg, held for {HOLD_TIME:g} s after {HOLD_SETTLE:g} s to settle: it slid "
         f"{slid * 1000:.1f} mm (at most {HOLD_SLIDE * 1000:.0f})",
-        f"a grip that holds: contact options ({field.split(': ')[0]}: options, e.g. impratio 10 and elliptic "
-        "cones), the pads' friction in the model, or a gripper actuator with more force",
+        f"a grip that holds: contact options ({world.robot.description.file}: options, e.g. impratio 10 and "
+        "elliptic cones), the pads' friction in the model, or a gripper actuator with more force",
     )
 
 
@@ -349,7 +350,8 @@ def _limits(world: World, name: str, file) -> Finding:
     the measured joint behind its command watched every control cycle."""
     config = ExecutorConfig()
     lags, speeds = [], []
-    for index in range(len(Arm(world, name).joints)):
+    joints = Arm(world, name).joints
+    for index in range(len(joints)):
         world.reset()
         executor = Executor(world, name)
         arm, start = executor.arm, executor.position.copy()
@@ -368,7 +370,7 @@ def _limits(world: World, name: str, file) -> Finding:
         executor.run(MoveTo("limits", target=target), timeout=10.0, observe=watch)
         lags.append(worst[0])
         speeds.append(worst[1])
-    joints, allowed = Arm(world, name).joints, LAG_SHARE * config.following_tolerance
+    allowed = LAG_SHARE * config.following_tolerance
     worst = int(np.argmax(lags))
     suggested = speeds[worst] * allowed / max(lags[worst], 1e-9)  # the lag grows with the speed
     return Finding(

@@ -357,3 +357,15 @@ def pincer(folder, command, **gripper):
     (folder / "pincer.xml").write_text(PINCER)
     (folder / "description.json").write_text(json.dumps(desc))
     return str(folder)
+
+
+def run_within_limits(task: str, seed: int, robot: str) -> tuple:
+    """The seeded run of ``task``'s default tree on ``robot``: its summary and the commands it sent beyond
+    the arm's limits."""
+    from besman.sim.executor import limit_violations
+    from besman.tasks.running import prepare
+
+    prepared = prepare(task, seed=seed, robot=robot)
+    summary = prepared.judge(prepared.runner.run())
+    executor = prepared.runner.executor
+    return summary, limit_violations(executor.log, executor)

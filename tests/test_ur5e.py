@@ -7,15 +7,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import run_cli
+from helpers import run_cli, run_within_limits
 
 import besman.robots as robots
 from besman.robots import menagerie
 from besman.robots.description import DescriptionError
 from besman.robots.gripper import measure_openings
-from besman.sim.executor import limit_violations
 from besman.tasks import task
-from besman.tasks.running import prepare
 from besman.tasks.sort import places as sort_places
 
 
@@ -160,19 +158,12 @@ def test_the_demos_next_step_on_the_ur5e_runs_there(capsys, tmp_path):
     assert code == 0 and out.startswith("SUCCESS"), out
 
 
-def _run(name: str, seed: int) -> tuple[dict, list[str]]:
-    prepared = prepare(name, seed=seed, robot="ur5e")
-    summary = prepared.judge(prepared.runner.run())
-    executor = prepared.runner.executor
-    return summary, limit_violations(executor.log, executor)
-
-
 @pytest.mark.slow
 def test_grasp_then_place_on_the_ur5e_ten_of_ten_within_its_limits():
     """The issue's acceptance on seeds no other test or tuning used: every box within 2 cm of its target,
     every commanded motion of every episode within the UR5e's velocity, acceleration and jerk limits."""
     for seed in range(1000, 1010):
-        summary, violations = _run("pick-place", seed)
+        summary, violations = run_within_limits("pick-place", seed, "ur5e")
         assert summary.success and summary.measurements["placement_error_m"] <= 0.02, (seed, summary.message)
         assert violations == [], (seed, violations)
 
@@ -183,7 +174,7 @@ def test_sort_on_the_ur5e_ten_of_ten_within_its_limits():
     again: 10/10 on unused seeds, every box within 2 cm, every command within the limits."""
     places = sort_places("ur5e")
     for seed in range(1000, 1010):
-        summary, violations = _run("sort", seed)
+        summary, violations = run_within_limits("sort", seed, "ur5e")
         assert summary.success, (seed, summary.status, summary.message)
         measured = summary.measurements
         assert measured["slipped"] in places and max(measured["placement_errors_m"].values()) <= 0.02

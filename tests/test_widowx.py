@@ -9,22 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import failed_placements, run_cli
+from helpers import failed_placements, run_cli, run_within_limits
 
-from besman.sim.executor import limit_violations
 from besman.tasks import task
-from besman.tasks.running import prepare
 
 ROOT = Path(__file__).resolve().parents[1]
 WIDOWX = ROOT / "examples" / "robots" / "widowx_ai"
 POOL = ROOT / "examples" / "pools" / "pick_place_widowx_ai"
-
-
-def _run(name: str, seed: int) -> tuple:
-    prepared = prepare(name, seed=seed, robot=str(WIDOWX))
-    summary = prepared.judge(prepared.runner.run())
-    executor = prepared.runner.executor
-    return summary, limit_violations(executor.log, executor)
 
 
 @pytest.mark.slow
@@ -67,7 +58,7 @@ def test_the_robots_page_brings_the_widowx_as_it_says(capsys, tmp_path, monkeypa
 @pytest.mark.slow
 def test_pick_place_on_the_widowx_ten_of_ten_within_its_limits():
     for seed in range(3801, 3811):
-        summary, violations = _run("pick-place", seed)
+        summary, violations = run_within_limits("pick-place", seed, str(WIDOWX))
         assert summary.success and summary.measurements["placement_error_m"] <= 0.02, (seed, summary.message)
         assert violations == [], (seed, violations)
 
@@ -76,7 +67,7 @@ def test_pick_place_on_the_widowx_ten_of_ten_within_its_limits():
 def test_sort_on_the_widowx_ten_of_ten_within_its_limits():
     """Three boxes to their places, one taken out of the hand on its way and grasped again, every time."""
     for seed in range(3811, 3821):
-        summary, violations = _run("sort", seed)
+        summary, violations = run_within_limits("sort", seed, str(WIDOWX))
         assert summary.success, (seed, summary.message)
         assert max(summary.measurements["placement_errors_m"].values()) <= 0.02
         assert violations == [], (seed, violations)
