@@ -62,6 +62,7 @@ def listings() -> list[list[str]]:
         ["tasks", "show", "pick-place"],
         ["robots"],
         ["robots", "show", "ur5e"],
+        ["robots", "show", "openarm"],  # the robot with the most meshes (94)
         ["tree", "check", "examples/trees/grasp_then_place_learned.yaml"],
         ["tree", "show", "examples/trees/grasp_then_place.yaml"],
         ["tree", "nodes"],

@@ -28,8 +28,9 @@ Top-level fields (schema version 2; a field the version does not have is refused
   (``robots check`` measures it and suggests a value)
 - ``attach`` (optional): ``[{"model": ..., "site": ..., "prefix": ...}]``: models attached at a site (a
   gripper on a flange), names prefixed; the keyframe is extended
-- ``options`` (optional): simulation options (``impratio``, ``cone``, ``timestep``, ...) the model or an
-  attached part needs; at attach the parent's win
+- ``options`` (optional): simulation options the model or an attached part needs (``impratio``, ``cone``,
+  ``timestep``; ``noslip_iterations``: MuJoCo's no-slip solver, for a grip that must not turn an object
+  held off its middle, as the handover's bar); at attach the parent's win
 - ``mount`` (optional): ``{"position": [x, y, z], "yaw_degrees": deg}``: where the robot's root bodies stand
   (turned about z, then shifted), however the model orients them
 - ``floor`` (optional): true: besman's floor and lights for a model that has none (a raised mount gets a
@@ -45,7 +46,7 @@ Top-level fields (schema version 2; a field the version does not have is refused
   reaches top-down grasps (tasks draw their objects there)
 - ``tasks`` (for tasks the robot is new to): numbers of tasks by task name, each checked by its task:
   pick-place's ``{"places": area}`` on the shelf; the handover's ``bar``, ``places``, ``ready``, ``present``
-  (:mod:`besman.tasks.handover`)
+  and optionally ``grip`` (:mod:`besman.tasks.handover`)
 
 An arm: ``{"groups": [...], "tcp": ..., "gripper": ...}``.
 
@@ -81,7 +82,7 @@ from besman.skills.storage import check_schema_version, optional_field, read_jso
 
 SCHEMA_VERSION = 2
 # Simulation options a description may set (an attached gripper may need them; the parent's are kept).
-OPTIONS = ("impratio", "cone", "timestep")
+OPTIONS = ("impratio", "cone", "timestep", "noslip_iterations")
 
 
 class DescriptionError(BesmanError):
@@ -409,12 +410,13 @@ def read_hand_pose(value: Any, where: str) -> HandPose:
     )
 
 
-def section(value: Any, where: str, fields: tuple[str, ...]) -> dict:
-    """A mapping with exactly the given ``fields`` (a task's section of a description)."""
+def section(value: Any, where: str, fields: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
+    """A mapping with exactly the given ``fields``, each a mapping, and maybe ``optional`` ones (a task's
+    section of a description; the task reads those)."""
     value = _object(value, where)
-    unknown = sorted(set(value) - set(fields))
+    unknown = sorted(set(value) - set(fields) - set(optional))
     if unknown:
-        raise DescriptionError(f"{where}.{unknown[0]}: not a field here ({', '.join(fields)})")
+        raise DescriptionError(f"{where}.{unknown[0]}: not a field here ({', '.join(fields + optional)})")
     for name in fields:
         _field(value, name, dict, where)
     return value

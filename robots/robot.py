@@ -253,9 +253,11 @@ class Robot:
         return set()
 
 
-@checked(name=ROBOT)
-def load(name: str) -> Robot:
-    """Loads a shipped robot by name (see :func:`available`), or a robot folder given as a path.
+@checked(name=ROBOT, meshes=instance(bool, "True or False"))
+def load(name: str, *, meshes: bool = True) -> Robot:
+    """Loads a shipped robot by name (see :func:`available`), or a robot folder given as a path. With
+    ``meshes=False`` no mesh file is read (:func:`~besman.robots.assembly.without_meshes`), for what needs
+    only its joints, actuators and description (``besman robots show``).
 
     Raises:
         InputError: unknown name (the message lists the available robots), or a model that does not load.
@@ -263,7 +265,7 @@ def load(name: str) -> Robot:
             file and field).
     """
     description = describe(name)
-    return Robot(description, compile_spec(build_spec(description), description))
+    return Robot(description, compile_spec(build_spec(description, meshes=meshes), description))
 
 
 @checked(

@@ -3,10 +3,11 @@ tree ``handover.yaml``).
 
 The left arm picks the 26 cm bar from the table's left side at one end while the right arm waits at the
 ``ready`` pose; the left presents the bar in front of the body (``present``), the right hand takes the
-other end, the left lets go, rises and goes home, and the right arm puts the bar on the shelf. The poses and
-areas are the robot's (:data:`HANDOVER`, or its description's ``tasks.handover`` section: ``bar`` and
-``places`` areas, ``ready`` and ``present`` hand poses, read as :func:`~besman.robots.description.read_area`
-and :func:`~besman.robots.description.read_hand_pose` read them).
+other end, the left lets go, rises and goes home, and the right arm puts the bar on the shelf. The poses,
+areas and grip are the robot's (:data:`HANDOVER`, or its description's ``tasks.handover`` section: ``bar``
+and ``places`` areas, ``ready`` and ``present`` hand poses, read as
+:func:`~besman.robots.description.read_area` and :func:`~besman.robots.description.read_hand_pose` read
+them, and optionally ``grip``, :class:`HandoverNumbers`).
 
 - **Randomised**: tau = ``bar`` (x, y of its middle on the table) and ``place`` (x, y of its target on the
   shelf), drawn uniformly from the robot's areas, bar first. Without a seed: the middle of both areas.
@@ -33,16 +34,25 @@ if TYPE_CHECKING:
 Area = tuple[tuple[float, float], tuple[float, float]]  # (x0, x1), (y0, y1) in m
 
 
+BAR_HALF_LENGTH = 0.13  # m: the bar is 26 cm long
+GRIP = 0.08  # m from the bar's middle where each hand holds it, unless the robot says otherwise
+# The grips a robot may give: the hands' pads (4 cm) on the bar, and the hands apart.
+GRIPS = (0.04, BAR_HALF_LENGTH - 0.02)
+
+
 @dataclass(frozen=True)
 class HandoverNumbers:
     """A robot's handover: where the left hand picks the bar on the table, where the right hand puts it on
     the shelf (areas), where the right hand waits and where the left presents the bar (hand poses, as the
-    tree reads them: ``{"position": [x, y, z], "yaw": rad}``, yaw optional)."""
+    tree reads them: ``{"position": [x, y, z], "yaw": rad}``, yaw optional), and how far from the bar's
+    middle each hand holds it (``grip``, m: the left at +grip along the bar, the right at -grip; wide
+    wrists need their hands farther apart)."""
 
     bar: Area
     places: Area
     ready: dict
     present: dict
+    grip: float = GRIP
 
 
 # Each robot's README says where its numbers come from (the OpenArm's bar area is the left hand's mirror of
@@ -66,15 +76,22 @@ ARMS = ("right", "left")  # the right arm places, the left picks
 
 def _read_handover(section: dict, where: str, layout) -> HandoverNumbers:
     """A description's ``tasks.handover``, its areas on ``layout``'s table and shelf."""
-    from besman.robots.description import read_area, read_hand_pose
+    from besman.robots.description import DescriptionError, read_area, read_hand_pose
     from besman.robots.description import section as fields
 
-    section = fields(section, where, ("bar", "places", "ready", "present"))
+    section = fields(section, where, ("bar", "places", "ready", "present"), optional=("grip",))
+    grip = section.get("grip", GRIP)
+    if isinstance(grip, bool) or not isinstance(grip, int | float) or not GRIPS[0] <= grip <= GRIPS[1]:
+        raise DescriptionError(
+            f"{where}.grip: how far from the bar's middle each hand holds it, {GRIPS[0]}-{GRIPS[1]} m "
+            f"(the bar is {2 * BAR_HALF_LENGTH:.2f} m long), got {grip!r}"
+        )
     return HandoverNumbers(
         bar=read_area(section["bar"], f"{where}.bar", layout.table),
         places=read_area(section["places"], f"{where}.places", layout.shelf),
         ready=asdict(read_hand_pose(section["ready"], f"{where}.ready")),
         present=asdict(read_hand_pose(section["present"], f"{where}.present")),
+        grip=float(grip),
     )
 
 
@@ -157,7 +174,9 @@ class Handover(Task):
 
         numbers = self.numbers(robot)
         # A bar, so that two hands can hold it at once from above, 12 cm apart: 26 x 4 x 4 cm, along y.
-        bar = GraspableObject("bar", size=(0.02, 0.13, 0.02), mass=0.2, rgba=(0.85, 0.65, 0.15, 1.0))
+        bar = GraspableObject(
+            "bar", size=(0.02, BAR_HALF_LENGTH, 0.02), mass=0.2, rgba=(0.85, 0.65, 0.15, 1.0)
+        )
         world = tabletop_world((bar,), robot)
         world.place_on("bar", "table", *values["bar"])
         # Both arms at once: the waist they share is held (a turning torso would carry the left hand, and
@@ -166,7 +185,7 @@ class Handover(Task):
         contacts = ArmContacts(executor, executor.arm_executor("left"))
         return Scene(
             executor,
-            {**values, "ready": numbers.ready, "present": numbers.present},
+            {**values, **self._poses(numbers)},
             {name: value.tolist() for name, value in values.items()},
             lambda: self.judge(world, values["place"], contacts),
             observe=contacts,
@@ -192,9 +211,18 @@ class Handover(Task):
             },
         )
 
+    @staticmethod
+    def _poses(numbers: HandoverNumbers) -> dict:
+        """The robot's handover values the tree reads: where the hands wait and meet, where each holds."""
+        return {
+            "ready": numbers.ready,
+            "present": numbers.present,
+            "left_grip": (0.0, numbers.grip),
+            "right_grip": (0.0, -numbers.grip),
+        }
+
     def facts(self, robot: str) -> dict:
-        numbers = self.numbers(robot)
-        return {"handover": {"ready": numbers.ready, "present": numbers.present}}
+        return {"handover": self._poses(self.numbers(robot))}
 
 
 TASKS = (Handover(),)

@@ -136,7 +136,7 @@ def prepare(
     py_trees.blackboard.Blackboard.clear()
     scene = task.scene(robot, task_values, seed)
     observe_perturbation, perturbation = _perturbed(task, scene, perturb, seed)
-    set_task_values({**scene.values, **extra})
+    set_task_values({**scene.values, **_as_held(extra, scene.values)})
     run_info = {
         "task": task.name,
         "demo": demo,
@@ -161,6 +161,25 @@ def prepare(
         observe=observers(scene.observe, observe_perturbation, observe),
     )
     return TaskRun(runner, scene.judge)
+
+
+def _as_held(given: Mapping[str, np.ndarray], held: Mapping[str, object]) -> dict:
+    """``given`` /task values (numbers) in the form the scene holds them (``held``): a hand pose,
+    ``{"position": [x, y, z], "yaw": rad}``, from x, y, z in m and a yaw in degrees (optional)."""
+    shaped = {}
+    for name, numbers in given.items():
+        current = held.get(name)
+        if not (isinstance(current, Mapping) and "position" in current):
+            shaped[name] = numbers
+        elif numbers.shape in ((3,), (4,)) and np.isfinite(numbers).all():
+            yaw = float(np.radians(numbers[3])) if numbers.size == 4 else None
+            shaped[name] = {"position": numbers[:3].tolist(), "yaw": yaw}
+        else:
+            raise InputError(
+                f"--set {name}: a hand pose, x, y, z in m and a yaw in degrees if it turns the hand; got "
+                f"{numbers.tolist()}"
+            )
+    return shaped
 
 
 PERTURBATION_STREAM = 7  # the child of the run's seed that draws its perturbations

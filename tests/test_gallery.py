@@ -29,7 +29,7 @@ from besman.trees.conditions import ArmsApart, ObjectAt
 from besman.trees.guards import KeepApart
 from besman.trees.leaves import ExecutePrimitive
 from besman.trees.loops import ForEach
-from besman.trees.manipulation import PlanMove
+from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove
 from besman.trees.runner import Runner
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -250,6 +250,32 @@ def test_plan_move_goes_to_the_pose_its_goal_role_holds():
     assert result.status == "FAILURE" and "/task/broken must hold {'position'" in result.message
     with pytest.raises(InputError, match="give exactly one of position, rise, home"):
         PlanMove("both", position=[0.5, 0, 1], remap={"goal": "/task/ready"})
+
+
+def test_plan_grasp_takes_its_offset_from_the_key_its_offset_role_names():
+    """Where a hand holds an object may be the robot's (the handover's /task/left_grip): the grasp is
+    planned that far from the object's centre; a malformed offset fails the leaf naming the key."""
+
+    def planned(key: str):
+        py_trees.blackboard.Blackboard.clear()
+        set_task_values({"grip": [0.0, 0.02], "broken": [0.02]})
+        executor = Executor(tabletop_world())
+        see = PerceiveObject("see", object="box", namespace="g")
+        plan = PlanGrasp("plan", object="box", namespace="g", remap={"offset": key})
+        result = Runner(py_trees.composites.Sequence("g", memory=True, children=[see, plan]), executor).run()
+        return result, executor
+
+    result, executor = planned("/task/grip")
+    assert result.status == "SUCCESS", result.message
+    descend = py_trees.blackboard.Blackboard.get("/g/descend")
+    grasp = executor.arm.site_pose(descend.dmp.goal).position
+    box = executor.world.object_pose("box").position
+    np.testing.assert_allclose(grasp[:2] - box[:2], [0.0, 0.02], atol=1e-3)
+    result, _ = planned("/task/broken")
+    assert result.status == "FAILURE"
+    assert "/task/broken must hold x, y in m (the grasp's offset), got [0.02]" in result.message
+    with pytest.raises(InputError, match="give offset or remap it to a key, not both"):
+        PlanGrasp("both", object="box", offset=[0.0, 0.02], remap={"offset": "/task/grip"})
 
 
 def test_keep_apart_stops_its_subtree_when_the_arms_come_closer_than_its_margin():

@@ -7,11 +7,13 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+import py_trees
 import pytest
 from helpers import run_cli
 
 from besman.cli import build_parser, commands, main
 from besman.tasks.pick_place import PickPlace
+from besman.tasks.running import prepare
 
 TREE = Path(__file__).resolve().parents[1] / "examples" / "trees" / "grasp_then_place.yaml"
 COMMANDS = [["run", str(TREE)], ["demo", "pick-place"]]
@@ -75,3 +77,18 @@ def test_the_help_says_yaws_are_in_degrees_and_a_shape_takes_a_name():
         text = " ".join(found[path].format_help().split())
         assert "yaws in degrees" in text and "a name (e.g. shape=cylinder)" in text, path
     assert "yaws in degrees" in " ".join(found[("tasks",)].format_help().split())  # what show shows
+
+
+def test_a_hand_pose_the_tree_reads_is_set_as_x_y_z_and_a_yaw_in_degrees(capsys):
+    """``--set present=x,y,z[,yaw]`` sets the handover's hand pose as the tree reads it; a pose of two
+    numbers is refused with what it takes, before the run."""
+    prepare("handover", values={"present": [0.44, 0.06, 0.9, 90]})
+    pose = py_trees.blackboard.Blackboard.get("/task/present")
+    assert pose["position"] == [0.44, 0.06, 0.9] and pose["yaw"] == pytest.approx(np.pi / 2)
+    prepare("handover", values={"present": [0.44, 0.06, 0.9]})
+    assert py_trees.blackboard.Blackboard.get("/task/present")["yaw"] is None
+    tree = TREE.parent / "handover.yaml"
+    code, out, err = run_cli(capsys, "run", str(tree), "--set", "present=0.44,0.06")
+    assert code == 2 and out == "" and "Traceback" not in err
+    expected = "--set present: a hand pose, x, y, z in m and a yaw in degrees if it turns the hand; got "
+    assert expected + "[0.44, 0.06]" in err

@@ -109,3 +109,9 @@ def test_a_robot_the_task_does_not_know_brings_its_handover_in_its_description(t
     without_present = {key: value for key, value in handover.items() if key != "present"}
     with pytest.raises(DescriptionError, match="present"):
         found.bounds(_robot(tmp_path / "short", "short", without_present))
+    # Where each hand holds the bar: the task's 8 cm from its middle, or the robot's own (wide wrists).
+    assert found.numbers(robot).grip == 0.08
+    assert found.numbers(_robot(tmp_path / "wide", "wide", {**handover, "grip": 0.1})).grip == 0.1
+    for grip in (0.2, "far", True):
+        with pytest.raises(DescriptionError, match=r"tasks\.handover\.grip: how far from the bar's middle"):
+            found.bounds(_robot(tmp_path / f"grip{grip}", "g", {**handover, "grip": grip}))

@@ -213,9 +213,9 @@ class _Plan(SimulationBehaviour):
             self.feedback_message = f"no object {self.object!r} in the world"
             return Status.FAILURE
         source = np.asarray(self.blackboard.get(self.source), dtype=float)
-        goal = self.goal(source, item.name)
         self.refinement, template, learned, note = None, None, None, ""
         try:
+            goal = self.goal(source, item.name)
             if self.pool is not None:
                 template = self.pool[self.template]
                 learned = TemplateInstance(template, executor.arm)
@@ -271,12 +271,17 @@ class PlanGrasp(_Plan):
     """Plans reach, descend and lift for the object at ``object_position``, grasped ``offset`` (x, y in
     m, default its centre) from its centre: where it stands on the table or, held by another hand, in the
     air; across the faces that fit as the object is turned now (perceived with its position). With the
-    role ``target`` remapped (the placement the grasp is for), a grasp from which the object can be set
-    down there at the target's yaw."""
+    role ``offset`` remapped, the offset is the key's when the leaf plans (a robot's own: the handover's
+    ``/task/left_grip``). With the role ``target`` remapped (the placement the grasp is for), a grasp from
+    which the object can be set down there at the target's yaw."""
 
     parameters: ClassVar = {**_Plan.parameters, "offset": "floats[2]"}
     source = "object_position"
-    roles: ClassVar = {**_planning_roles(source, "reach", "descend", "lift"), "target": Access.READ}
+    roles: ClassVar = {
+        **_planning_roles(source, "reach", "descend", "lift"),
+        "target": Access.READ,
+        "offset": Access.READ,
+    }
     block = "reach"
     planner = plan_pick
 
@@ -305,10 +310,25 @@ class PlanGrasp(_Plan):
             remap=remap,
             arm=arm,
         )
+        if offset is not None and "offset" in self.remap:
+            raise InputError(f"{name}: give offset or remap it to a key, not both")
         self.offset = np.zeros(2) if offset is None else np.asarray(offset, dtype=float)
 
     def goal(self, source: np.ndarray, item: str) -> np.ndarray:
-        return np.r_[source[:2] + self.offset, source[2]]
+        return np.r_[source[:2] + self._offset(), source[2]]
+
+    def _offset(self) -> np.ndarray:
+        if "offset" not in self.remap:
+            return self.offset
+        given = self.blackboard.get("offset")
+        try:
+            offset = np.asarray(given, dtype=float)
+        except (TypeError, ValueError):
+            offset = np.empty(0)
+        if offset.shape != (2,) or not np.isfinite(offset).all():
+            shown = given.tolist() if isinstance(given, np.ndarray) else given
+            raise InputError(f"{self.key('offset')} must hold x, y in m (the grasp's offset), got {shown!r}")
+        return offset
 
     def _planned(self, goal: np.ndarray, item, shape):
         executor = self.executor
@@ -440,7 +460,7 @@ class PlanMove(SimulationBehaviour):
             position = np.asarray(goal["position"], dtype=float)
             yaw = goal.get("yaw")
             yaw = None if yaw is None else float(yaw)
-        except (TypeError, KeyError, ValueError, AttributeError):
+        except (TypeError, KeyError, IndexError, ValueError, AttributeError):
             raise InputError(
                 f"{self.key('goal')} must hold {{'position': [x, y, z], 'yaw': rad}}, got {goal!r}"
             ) from None

@@ -15,7 +15,7 @@ def _robot_table(name: str) -> dict:
     from besman.robots import load
     from besman.robots.assembly import model_path
 
-    robot = load(name)
+    robot = load(name, meshes=False)  # the table reads joints, actuators and the description
     description = robot.description
     joints = []
     for group in robot.groups.values():
