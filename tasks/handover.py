@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from besman.sim.objects import GraspableObject
 from besman.skills.errors import InputError
 from besman.skills.tasks import TaskBounds
 from besman.tasks.base import Scene, Task, TaskValue
@@ -35,6 +36,8 @@ Area = tuple[tuple[float, float], tuple[float, float]]  # (x0, x1), (y0, y1) in 
 
 
 BAR_HALF_LENGTH = 0.13  # m: the bar is 26 cm long
+# A bar, so that two hands can hold it at once from above, 12 cm apart: 26 x 4 x 4 cm, along y.
+BAR = GraspableObject("bar", size=(0.02, BAR_HALF_LENGTH, 0.02), mass=0.2, rgba=(0.85, 0.65, 0.15, 1.0))
 GRIP = 0.08  # m from the bar's middle where each hand holds it, unless the robot says otherwise
 # The grips a robot may give: the hands' pads (4 cm) on the bar, and the hands apart.
 GRIPS = (0.04, BAR_HALF_LENGTH - 0.02)
@@ -170,14 +173,10 @@ class Handover(Task):
 
     def scene(self, robot: str, values, seed: int | None) -> Scene:
         from besman.sim.executor import Executor
-        from besman.sim.world import GraspableObject, tabletop_world
+        from besman.sim.world import tabletop_world
 
         numbers = self.numbers(robot)
-        # A bar, so that two hands can hold it at once from above, 12 cm apart: 26 x 4 x 4 cm, along y.
-        bar = GraspableObject(
-            "bar", size=(0.02, BAR_HALF_LENGTH, 0.02), mass=0.2, rgba=(0.85, 0.65, 0.15, 1.0)
-        )
-        world = tabletop_world((bar,), robot)
+        world = tabletop_world((BAR,), robot)
         world.place_on("bar", "table", *values["bar"])
         # Both arms at once: the waist they share is held (a turning torso would carry the left hand, and
         # the bar, with it).

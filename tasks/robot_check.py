@@ -19,6 +19,8 @@ demo at a time.
   executor's following tolerance (a position actuator lags its command by its speed times kv / kp).
 - **pick-place**: the first arm picks the task's object at the middle of the object area and places it at
   the middle of the place area.
+- **handover** (a robot the handover fits): the left hand holds the bar by one end, where the task's
+  ``grip`` says, without it turning on in the grip.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from besman.sim.manipulation import DEFAULT_PLAN, FINGER_DEPTH, heights
 from besman.sim.motions import MoveTo
 from besman.sim.primitives import top_down
 from besman.sim.world import World, tabletop_world
+from besman.tasks.handover import BAR
 
 REACH_YAWS = np.radians([0.0, 90.0, 45.0, -45.0])  # hand yaws a reach is tried at (a cube's grasps)
 HOME_TILT = 10.0  # deg the home's tool z axis may lean from straight down
@@ -52,6 +55,9 @@ SETTLE = 1.5  # s the fingers get to settle at a command
 # s a held object settles in the grip, s it is then watched, m it may slide down meanwhile
 HOLD_SETTLE, HOLD_TIME, HOLD_SLIDE = 1.0, 1.0, 0.001
 LAG_SHARE = 0.75  # of the executor's following tolerance that a joint may lag at its limits
+# deg the handover's bar held by one end may turn on in the grip in HOLD_TIME, settled (the two WidowX AI
+# without the no-slip solver: 2.8; AILA, the OpenArm, the WidowX AI with it: 0.1 at most).
+BAR_TURN = 1.0
 
 
 @dataclass(frozen=True)
@@ -118,6 +124,10 @@ def check_robot(robot: str) -> Iterator[Finding]:
         for check in checks:
             world.reset()
             yield check()
+    handover = task("handover")
+    if handover.fits(describe(robot)):  # the left hand holds the bar by one end for the right to take it
+        with_bar = tabletop_world((BAR,), robot=robot)
+        yield _holds_bar(with_bar, "left", handover.numbers(robot).grip, str(description.file))
 
 
 def _home(world: World, name: str, field: str, middle) -> Finding:
@@ -265,8 +275,9 @@ def _opening(world: World, name: str, field: str) -> Finding:
     )
 
 
-def _closed_on(world: World, name: str, item) -> None:
-    """The object floated (no gravity) between the open pads at the tool frame, the fingers closed on it."""
+def _closed_on(world: World, name: str, item, along: float = 0.0) -> None:
+    """The object floated (no gravity) between the open pads at the tool frame, shifted ``along`` its
+    length (m: a bar held by one end), the fingers closed on it."""
     gripper = world.robot.arm(name).gripper
     gravity = world.model.opt.gravity.copy()
     world.model.opt.gravity[:] = 0.0
@@ -275,7 +286,10 @@ def _closed_on(world: World, name: str, item) -> None:
         position, rotation = _tool_frame(world, name)
         across = np.arctan2(rotation[1, 1], rotation[0, 1])  # the box's narrow side across the fingers
         turn = across if item.footprint[0] <= item.footprint[1] else across + np.pi / 2
-        world.set_object_pose(item.name, position, [np.cos(turn / 2), 0.0, 0.0, np.sin(turn / 2)])
+        length = np.array([-np.sin(turn), np.cos(turn), 0.0])  # the object's y axis, once turned
+        world.set_object_pose(
+            item.name, position + along * length, [np.cos(turn / 2), 0.0, 0.0, np.sin(turn / 2)]
+        )
         world.data.ctrl[gripper.actuators] = gripper.command_for(gripper.lower)
         for _ in range(round(SETTLE / world.model.opt.timestep)):
             mujoco.mj_step(world.model, world.data)
@@ -322,6 +336,30 @@ def _keeps_hold(world: World, name: str, item) -> Finding:
         f"{slid * 1000:.1f} mm (at most {HOLD_SLIDE * 1000:.0f})",
         f"a grip that holds: contact options ({world.robot.description.file}: options, e.g. impratio 10 and "
         "elliptic cones), the pads' friction in the model, or a gripper actuator with more force",
+    )
+
+
+def _holds_bar(world: World, name: str, grip: float, field: str) -> Finding:
+    """The handover's bar closed on :attr:`~besman.tasks.handover.HandoverNumbers.grip` from its middle,
+    then its weight on: after :data:`HOLD_SETTLE` s to settle in the grip (a hand may hold it at a slant),
+    it must not turn on by more than :data:`BAR_TURN` in :data:`HOLD_TIME` s (a grip whose contacts let it
+    creep drops its far end as the arm moves, and the other hand comes down beside it)."""
+    _closed_on(world, name, BAR, along=grip)
+    tilts = []
+    for seconds in (HOLD_SETTLE, HOLD_TIME):
+        for _ in range(round(seconds / world.model.opt.timestep)):
+            mujoco.mj_step(world.model, world.data)
+        length = world.object_pose(BAR.name).rotation[:, 1]
+        tilts.append(float(np.degrees(np.arcsin(np.clip(length[2], -1.0, 1.0)))))
+    turned = abs(tilts[1] - tilts[0])
+    return Finding(
+        name,
+        "holds the handover's bar by one end",
+        turned <= BAR_TURN,
+        f"the {2 * BAR.size[1] * 100:.0f} cm bar held {grip * 100:.0f} cm from its middle, after "
+        f"{HOLD_SETTLE:g} s to settle: it turned {turned:.1f} deg in {HOLD_TIME:g} s (at most {BAR_TURN:g})",
+        f"MuJoCo's no-slip solver ({field}: options.noslip_iterations, e.g. 10), or the hands nearer the "
+        "bar's middle (tasks.handover.grip)",
     )
 
 

@@ -12,6 +12,7 @@ from besman.robots.catalogue import ROBOTS_DIR
 from besman.tasks.robot_check import check_robot
 
 WIDOWX = Path(__file__).resolve().parents[1] / "examples" / "robots" / "widowx_ai"
+PAIR = WIDOWX.parent / "widowx_ai_pair"
 UR5E_PLACES = {"x": [0.32, 0.49], "y": [-0.45, -0.31]}  # the task's numbers for the UR5e, given by the file
 
 
@@ -118,3 +119,24 @@ def test_a_grip_without_the_contact_options_that_hold_is_named(tmp_path):
     assert not held.passed and held.measured.startswith("0.30 kg, held for 1 s after 1 s to settle: it slid")
     assert "loose_widowx/description.json: options, e.g. impratio 10 and elliptic cones" in held.fix
     assert [check for check, f in found.items() if not f.passed] == ["holds the task's object up"]
+
+
+def test_a_bar_that_turns_in_the_grip_without_the_no_slip_solver_is_named(tmp_path):
+    """The two WidowX AI hold the handover's bar 10 cm from its middle: without MuJoCo's no-slip solver it
+    keeps turning in the grip (2.8 deg/s, measured), with it it does not; the line says what to set."""
+    from besman.sim.world import tabletop_world
+    from besman.tasks.handover import BAR
+    from besman.tasks.robot_check import BAR_TURN, _holds_bar
+
+    folder = tmp_path / "pair"
+    shutil.copytree(PAIR, folder)
+    raw = json.loads((folder / "description.json").read_text())
+    del raw["options"]["noslip_iterations"]
+    (folder / "description.json").write_text(json.dumps(raw))
+    for robot, holds in ((str(PAIR), True), ("aila", True), (str(folder), False)):
+        found = _holds_bar(tabletop_world((BAR,), robot=robot), "left", 0.1, "FILE")
+        assert found.passed is holds, (robot, found.measured)
+    assert found.check == "holds the handover's bar by one end"
+    turned = float(found.measured.split("turned ")[1].split(" deg")[0])
+    assert turned > 2 * BAR_TURN and "held 10 cm from its middle" in found.measured
+    assert "FILE: options.noslip_iterations" in found.fix and "tasks.handover.grip" in found.fix
