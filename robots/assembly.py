@@ -8,7 +8,8 @@ The steps, in order (each from a field of ``description.json``, see :mod:`besman
 2. ``options``: simulation options set on the whole, before parts are attached: at attach the parent's
    options win over a part's own (e.g. the Robotiq 2F-85's ``impratio=10`` and elliptic cones, which the
    description therefore sets);
-3. ``attach``: each part's spec attached at a site of the model (``MjSpec.attach``), its names prefixed;
+3. ``attach``: each part's spec attached at a site of the model, or a body's origin (``MjSpec.attach``), its
+   names prefixed;
    MuJoCo extends the keyframes with the part's joints and actuators (at their defaults);
 4. ``gravity_compensation``: every body of the robot (parts included) weightless to its actuators;
 5. ``mount``: the root bodies moved (turned by yaw about z, then shifted), so the robot stands where its
@@ -35,6 +36,8 @@ from besman.robots.model_files import check_model_files
 from besman.skills.errors import InputError
 from besman.skills.validation import checked, instance
 
+JOINT = mujoco.mjtTrn.mjTRN_JOINT
+NOT_LIMITED = mujoco.mjtLimited.mjLIMITED_FALSE
 CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}
 # Options counted in whole numbers (solver iterations: noslip_iterations > 0 turns on the no-slip solver).
 WHOLE_OPTIONS = ("noslip_iterations",)
@@ -66,7 +69,14 @@ def _spec(path: Path) -> mujoco.MjSpec:
     try:
         return mujoco.MjSpec.from_file(str(path))
     except ValueError as error:
-        raise InputError(f"{path}: the model does not load: {error}") from None
+        hint = ""
+        if "mujocoinclude" in str(error):  # packages often ship fragments, not models
+            hint = (
+                ": it is a fragment for other models to include; give as the model a file of your own beside "
+                "the description that includes it where it belongs (<mujoco><worldbody><include "
+                f'file="{path}"/></worldbody></mujoco> for bodies, inside <asset> for assets)'
+            )
+        raise InputError(f"{path}: the model does not load: {error}{hint}") from None
 
 
 def _turn(yaw: float) -> np.ndarray:
@@ -151,10 +161,18 @@ def build_spec(description: RobotDescription, *, meshes: bool = True) -> mujoco.
     for index, part in enumerate(description.attach):
         part_where = f"{where}.attach[{index}]"
         child = _spec(model_path(part.model, description.folder, f"{part_where}.model"))
+        if part.body is not None:
+            body = spec.body(part.body)
+            if body is None:
+                raise DescriptionError(f"{part_where}.body: the model has no body {part.body!r}")
+            spec.attach(child, frame=body.add_frame(), prefix=part.prefix)
+            continue
         site = spec.site(part.site)
         if site is None:
             raise DescriptionError(f"{part_where}.site: the model has no site {part.site!r}")
         spec.attach(child, site=site, prefix=part.prefix)
+    if description.servos:
+        _add_servos(spec, description)
     if description.gravity_compensation:
         for body in spec.worldbody.find_all(mujoco.mjtObj.mjOBJ_BODY):
             body.gravcomp = 1.0
@@ -192,6 +210,43 @@ def build_spec(description: RobotDescription, *, meshes: bool = True) -> mujoco.
     if description.home:
         _add_home(spec, description)
     return spec
+
+
+def _add_servos(spec: mujoco.MjSpec, description: RobotDescription) -> None:
+    """A position actuator ``<joint>_servo`` on each joint of ``description.servos``, in place of the
+    actuators that drove it (appended, in the description's order); the keyframes' controls follow (a
+    servo's: its joint's position in the keyframe)."""
+    servos = description.servos
+    for joint in servos:
+        if spec.joint(joint) is None:
+            raise DescriptionError(f"{description.file}.servos.{joint}: the model has no joint {joint!r}")
+    actuators = list(spec.actuators)
+    replaced = [a.trntype == JOINT and a.target in servos for a in actuators]
+    controls = [
+        [value for value, gone in zip(key.ctrl, replaced, strict=False) if not gone] for key in spec.keys
+    ]
+    for joint, servo in servos.items():
+        force = servo.force
+        for actuator, gone in zip(actuators, replaced, strict=True):
+            if gone and actuator.target == joint and force is None and actuator.ctrllimited != NOT_LIMITED:
+                force = float(abs(actuator.gear[0]) * np.abs(actuator.ctrlrange).max()) or None
+        found = spec.joint(joint)
+        added = spec.add_actuator(name=f"{joint}_servo", target=joint, trntype=JOINT)
+        added.set_to_position(kp=servo.kp, kv=servo.kv)
+        if found.range[0] < found.range[1]:  # a joint without a range is refused with its group
+            added.ctrlrange, added.ctrllimited = found.range, mujoco.mjtLimited.mjLIMITED_TRUE
+        if force is not None:
+            added.forcerange, added.forcelimited = [-force, force], mujoco.mjtLimited.mjLIMITED_TRUE
+    for actuator, gone in zip(actuators, replaced, strict=True):
+        if gone:
+            spec.delete(actuator)
+    for key in spec.keys:
+        key.ctrl = []
+    model = without_meshes(spec.copy()).compile()
+    for index, key in enumerate(spec.keys):
+        kept = controls[index] + [0.0] * (model.nu - len(servos) - len(controls[index]))
+        at = model.key_qpos[index]
+        key.ctrl = kept + [float(at[model.jnt_qposadr[model.joint(joint).id]]) for joint in servos]
 
 
 def without_meshes(spec: mujoco.MjSpec) -> mujoco.MjSpec:

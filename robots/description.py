@@ -27,7 +27,8 @@ Top-level fields (schema version 2; a field the version does not have is refused
   its units per s, s^2, s^3: from the maker's data sheet, and no faster than the model's actuators follow
   (``robots check`` measures it and suggests a value)
 - ``attach`` (optional): ``[{"model": ..., "site": ..., "prefix": ...}]``: models attached at a site (a
-  gripper on a flange), names prefixed; the keyframe is extended
+  gripper on a flange), or at a body's origin (``"body"`` instead of ``"site"``: a model with no site
+  there), names prefixed; the keyframe is extended
 - ``options`` (optional): simulation options the model or an attached part needs (``impratio``, ``cone``,
   ``timestep``; ``noslip_iterations``: MuJoCo's no-slip solver, for a grip that must not turn an object
   held off its middle, as the handover's bar); at attach the parent's win
@@ -40,6 +41,9 @@ Top-level fields (schema version 2; a field the version does not have is refused
 - ``gravity_compensation`` (optional): true: the robot's bodies weightless to its actuators (MuJoCo
   ``gravcomp``), as an arm's controller does
 - ``exclude`` (optional): ``[[body, body], ...]``: pairs whose contacts are ignored
+- ``servos`` (optional): ``{joint: {"kp": stiffness, "kv": damping, "force": limit}}``: a position actuator
+  on each joint named, in place of whatever drives it in the model (a torque motor: besman commands every
+  arm joint's position); ``force`` defaults to the replaced motor's range, ``kv`` to 0
 - ``arms`` (for tasks): ``{name: arm}``, the first the one that works alone (below)
 - ``tabletop`` (for tasks): ``{"table": board, "shelf": board, "reach": area}``: a board is ``{"height", "x":
   [lo, hi], "y": [lo, hi]}`` in the robot's frame; ``reach`` is the area of the table where the first arm
@@ -120,11 +124,13 @@ class ModelSource:
 
 @dataclass(frozen=True)
 class Attachment:
-    """A model attached at a site of the robot's model, its names prefixed."""
+    """A model attached at a site of the robot's model, or at a body's origin (``site`` None), its names
+    prefixed."""
 
     model: ModelSource
-    site: str
+    site: str | None
     prefix: str
+    body: str | None = None
 
 
 @dataclass(frozen=True)
@@ -205,6 +211,17 @@ class Mount:
 
 
 @dataclass(frozen=True)
+class Servo:
+    """A position actuator the description puts on a joint in place of the model's own (a torque motor):
+    stiffness ``kp`` and damping ``kv`` (per rad or m), and its largest force ``force`` (None: the force
+    range of the motor it replaces, if that had one)."""
+
+    kp: float
+    kv: float = 0.0
+    force: float | None = None
+
+
+@dataclass(frozen=True)
 class RobotDescription:
     """The parsed ``description.json`` of one robot."""
 
@@ -226,6 +243,7 @@ class RobotDescription:
     velocity_feedforward: bool = False
     gravity_compensation: bool = False
     home: dict[str, float] = field(default_factory=dict)
+    servos: dict[str, Servo] = field(default_factory=dict)
 
     @property
     def file(self) -> Path:
@@ -478,6 +496,7 @@ FIELDS[2] = FIELDS[1] | {
     "arms",
     "tabletop",
     "tasks",
+    "servos",
 }
 
 
@@ -524,11 +543,14 @@ def read_description(path: Path) -> RobotDescription:
     for index, item in enumerate(raw.get("attach", [])):
         item_where = f"{where}.attach[{index}]"
         item = _object(item, item_where)
+        if ("site" in item) == ("body" in item):
+            raise DescriptionError(f"{item_where}: give where the part goes, a site or a body (its origin)")
         attach.append(
             Attachment(
                 _model_source(item.get("model"), f"{item_where}.model"),
-                _field(item, "site", str, item_where),
+                optional_field(item, "site", str, item_where, DescriptionError),
                 _field(item, "prefix", str, item_where),
+                optional_field(item, "body", str, item_where, DescriptionError),
             )
         )
     mount = raw.get("mount")
@@ -584,4 +606,26 @@ def read_description(path: Path) -> RobotDescription:
         velocity_feedforward=switches["velocity_feedforward"],
         gravity_compensation=switches["gravity_compensation"],
         home={joint: float(position) for joint, position in home.items()},
+        servos={
+            joint: _servo(value, f"{where}.servos.{joint}")
+            for joint, value in _object(raw.get("servos", {}), f"{where}.servos").items()
+        },
     )
+
+
+def _servo(value: Any, where: str) -> Servo:
+    value = _object(value, where)
+    unknown = sorted(set(value) - {"kp", "kv", "force"})
+    if unknown:
+        raise DescriptionError(f"{where}.{unknown[0]}: not a field of a servo (kp, kv, force)")
+    numbers = {}
+    for key in ("kp", "kv", "force"):
+        if key not in value:
+            if key == "kp":
+                raise DescriptionError(f"{where}: needs kp, the servo's stiffness (force per rad or m)")
+            continue
+        (number,) = _numbers([value[key]], f"{where}.{key}")
+        if number < 0 or (number == 0 and key != "kv"):
+            raise DescriptionError(f"{where}.{key}: must be positive, got {value[key]!r}")
+        numbers[key] = number
+    return Servo(**numbers)

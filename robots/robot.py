@@ -184,10 +184,30 @@ class Robot:
         where = f"{self.description.file}.arms.{name}"
         if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, spec.tcp.site) < 0:
             raise DescriptionError(f"{where}.tcp: the model has no site {spec.tcp.site!r}")
+        for group in spec.groups:
+            self._check_servos(self.group(group), where)
         gripper = None
         if spec.gripper is not None:
             gripper = self._compile_gripper(spec.gripper, f"{where}.gripper")
         return RobotArm(name, spec.groups, spec.tcp.site, gripper)
+
+    def _check_servos(self, group: JointGroup, where: str) -> None:
+        """Every joint of an arm's group driven by a position actuator: besman commands joint positions."""
+        model = self.model
+        for joint, dof in zip(group.joints, group.dof_indices, strict=True):
+            drivers = [a for a in group.actuator_indices if dof in self._actuated_dofs(a)]
+            if any(_is_servo(model, a) for a in drivers):
+                continue
+            driven = (
+                "no actuator"
+                if not drivers
+                else ", ".join(f"{model.actuator(a).name or f'#{a}'} (not a position servo)" for a in drivers)
+            )
+            raise DescriptionError(
+                f"{where}: joint {joint!r} is driven by {driven}: besman commands each arm joint's position; "
+                f'give it a position actuator in the description: "servos": {{"{joint}": {{"kp": ..., "kv": '
+                "...}} (stiffness and damping: the maker's gains, or what robots check then shows it follows)"
+            )
 
     def _compile_gripper(self, description: GripperSpec, where: str) -> Gripper:
         model = self.model
@@ -251,6 +271,17 @@ class Robot:
                 if model.wrap_type[w] == mujoco.mjtWrap.mjWRAP_JOINT.value
             }
         return set()
+
+
+def _is_servo(model: mujoco.MjModel, actuator: int) -> bool:
+    """Whether the actuator is a position servo: force kp * (command - position) - kv * velocity."""
+    kp = model.actuator_gainprm[actuator, 0]
+    return (
+        model.actuator_gaintype[actuator] == mujoco.mjtGain.mjGAIN_FIXED
+        and model.actuator_biastype[actuator] == mujoco.mjtBias.mjBIAS_AFFINE
+        and kp > 0
+        and np.isclose(model.actuator_biasprm[actuator, 1], -kp)
+    )
 
 
 @checked(name=ROBOT, meshes=instance(bool, "True or False"))

@@ -78,6 +78,16 @@ def check_robot(robot: str) -> Iterator[Finding]:
 
     description = describe(robot)
     first = next(iter(description.arms), None)
+    if description.tabletop is None:
+        yield Finding(
+            first or "-",
+            "the tabletop",
+            False,
+            "the description has no tabletop (the table, the shelf and the area the arm reaches): the checks "
+            "need the table",
+            f"add tabletop to {description.file} (besman.robots.description lists its fields)",
+        )
+        return
     task_areas = areas(robot)  # (object area, place area), or None
     if task_areas is None:
         yield Finding(

@@ -140,3 +140,13 @@ def test_a_bar_that_turns_in_the_grip_without_the_no_slip_solver_is_named(tmp_pa
     turned = float(found.measured.split("turned ")[1].split(" deg")[0])
     assert turned > 2 * BAR_TURN and "held 10 cm from its middle" in found.measured
     assert "FILE: options.noslip_iterations" in found.fix and "tasks.handover.grip" in found.fix
+
+
+def test_a_robot_without_a_tabletop_is_told_to_add_one(tmp_path):
+    def change(raw):
+        del raw["tabletop"], raw["tasks"]
+
+    robot = ur5e_copy(tmp_path, "ur5e_no_table", change)
+    (finding,) = check_robot(robot)
+    assert not finding.passed and finding.check == "the tabletop"
+    assert f"add tabletop to {robot}/description.json" in finding.fix

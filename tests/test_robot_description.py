@@ -212,6 +212,85 @@ def test_the_mount_turns_a_base_body_that_the_model_turns_with_euler(tmp_path):
         assert quaternion == pytest.approx([math.cos(half), 0, 0, math.sin(half)], abs=1e-6)
 
 
+def test_a_fragment_given_as_the_model_says_how_to_include_it(tmp_path):
+    """Packages often ship ``<mujocoinclude>`` fragments: the error says to include it from a model file of
+    the user's own, and that model, beside the description, loads."""
+    write_robot(tmp_path, description())
+    bodies = TINY_ARM.split("<worldbody>")[1].split("</worldbody>")[0]
+    (tmp_path / "arm.xml").write_text(f"<mujocoinclude>{bodies}</mujocoinclude>")
+    (tmp_path / "description.json").write_text(json.dumps(description(model="arm.xml")))
+    with pytest.raises(ValueError, match="the model does not load") as refused:
+        robots.load(str(tmp_path))
+    message = str(refused.value)
+    assert message.startswith(f"{tmp_path / 'arm.xml'}: the model does not load") and "a fragment" in message
+    assert '<mujoco><worldbody><include file="' in message
+    model = TINY_ARM.replace(bodies, '<include file="arm.xml"/>')
+    (tmp_path / "model.xml").write_text(model)
+    (tmp_path / "description.json").write_text(json.dumps(description(model="model.xml")))
+    assert robots.load(str(tmp_path)).group("arm").joints == ("j1", "j2")
+
+
+def test_an_arm_driven_by_torque_motors_is_refused_until_the_description_gives_it_servos(tmp_path):
+    """besman commands joint positions: an arm joint driven by a motor (robosuite's arms) is refused with
+    the field that fixes it; ``servos`` puts a position actuator on each joint in the motor's place (its
+    force range the motor's), the keyframe's controls following, and the joints then hold a command."""
+    import mujoco
+
+    motors = TINY_ARM.replace(
+        '<position name="j1" joint="j1" kp="10" ctrlrange="-1 1"/>',
+        '<motor name="j1" joint="j1" gear="2" ctrlrange="-3 3"/>',
+    ).replace('<position name="j2" joint="j2" kp="10" ctrlrange="-2 2"/>', "")
+    motors = motors.replace('ctrl="0.1 0.2"', 'ctrl="0.5"')
+    arm = {"groups": ["arm"], "tcp": {"site": "tip"}}
+    write_robot(tmp_path, None, json.dumps(description(schema_version=2, arms={"arm": arm})))
+    (tmp_path / "tiny.xml").write_text(motors)
+    with pytest.raises(DescriptionError) as refused:
+        robots.load(str(tmp_path))
+    assert "arms.arm: joint 'j1' is driven by j1 (not a position servo)" in str(refused.value)
+    assert '"servos": {"j1": {"kp": ..., "kv": ...}}' in str(refused.value)
+    servos = {"j1": {"kp": 50.0, "kv": 5.0}, "j2": {"kp": 20.0, "force": 4.0}}
+    given = description(schema_version=2, arms={"arm": arm}, servos=servos)
+    (tmp_path / "description.json").write_text(json.dumps(given))
+    robot = robots.load(str(tmp_path))
+    model = robot.model
+    assert [model.actuator(a).name for a in range(model.nu)] == ["j1_servo", "j2_servo"]
+    assert list(model.actuator_forcerange[0]) == [-6.0, 6.0] and list(model.actuator_forcerange[1]) == [-4, 4]
+    assert list(model.actuator_ctrlrange[1]) == [-2.0, 2.0] and model.actuator_biasprm[0, 2] == -5.0
+    assert list(model.key("home").ctrl) == pytest.approx([0.1, 0.2])  # each servo at its joint's position
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    data.ctrl[:] = [0.4, -0.3]
+    for _ in range(3000):
+        mujoco.mj_step(model, data)
+    assert data.qpos == pytest.approx([0.4, -0.3], abs=0.01)
+    for bad, message in (
+        ({"kv": 1.0}, "needs kp"),
+        ({"kp": -1}, "must be positive"),
+        ({"kp": 1, "ki": 2}, "ki"),
+    ):
+        (tmp_path / "description.json").write_text(json.dumps({**given, "servos": {"j1": bad}}))
+        with pytest.raises(DescriptionError, match=f"servos.j1.*{message}|servos.j1: {message}"):
+            robots.load(str(tmp_path))
+
+
+def test_a_part_attaches_at_a_bodys_origin_where_the_model_has_no_site(tmp_path):
+    """robosuite's arms carry their gripper on a body with no site: ``attach`` takes the body instead."""
+    part = '<mujoco><worldbody><body name="finger"><geom size="0.01" mass="0.1"/></body></worldbody></mujoco>'
+    (tmp_path / "part.xml").write_text(part)
+    attach = [{"model": "part.xml", "body": "link2", "prefix": "hand/"}]
+    write_robot(tmp_path, description(schema_version=2, attach=attach))
+    model = robots.load(str(tmp_path)).model
+    assert model.body("hand/finger").parentid == model.body("link2").id
+    for where, message in (
+        ({"site": "tip", "body": "link2"}, "a site or a body"),
+        ({"body": "x"}, "no body 'x'"),
+    ):
+        given = description(schema_version=2, attach=[{"model": "part.xml", "prefix": "p/", **where}])
+        (tmp_path / "description.json").write_text(json.dumps(given))
+        with pytest.raises(DescriptionError, match=message):
+            robots.load(str(tmp_path))
+
+
 def test_the_world_objects_compile_whatever_the_models_compiler_settings(tmp_path):
     """A model whose compiler infers inertia only from geoms of groups 4-5 (as gym-aloha's do) still gets
     the tabletop world's objects with their mass: the compile error blamed the user's description."""
