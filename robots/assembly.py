@@ -10,7 +10,8 @@ The steps, in order (each from a field of ``description.json``, see :mod:`besman
    description therefore sets);
 3. ``attach``: each part's spec attached at a site of the model, or a body's origin (``MjSpec.attach``), its
    names prefixed;
-   MuJoCo extends the keyframes with the part's joints and actuators (at their defaults);
+   MuJoCo extends the keyframes with the part's joints and actuators (at their defaults); ``servos``: a
+   position actuator on each joint named, in place of what drove it, the keyframes' controls following;
 4. ``gravity_compensation``: every body of the robot (parts included) weightless to its actuators;
 5. ``mount``: the root bodies moved (turned by yaw about z, then shifted), so the robot stands where its
    tabletop layout expects it;
