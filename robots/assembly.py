@@ -218,8 +218,9 @@ def _add_servos(spec: mujoco.MjSpec, description: RobotDescription) -> None:
     actuators that drove it (appended, in the description's order); the keyframes' controls follow (a
     servo's: its joint's position in the keyframe)."""
     servos = description.servos
-    for joint in servos:
-        if spec.joint(joint) is None:
+    joints = {joint: spec.joint(joint) for joint in servos}
+    for joint, found in joints.items():
+        if found is None:
             raise DescriptionError(f"{description.file}.servos.{joint}: the model has no joint {joint!r}")
     actuators = list(spec.actuators)
     replaced = [a.trntype == JOINT and a.target in servos for a in actuators]
@@ -231,7 +232,7 @@ def _add_servos(spec: mujoco.MjSpec, description: RobotDescription) -> None:
         for actuator, gone in zip(actuators, replaced, strict=True):
             if gone and actuator.target == joint and force is None and actuator.ctrllimited != NOT_LIMITED:
                 force = float(abs(actuator.gear[0]) * np.abs(actuator.ctrlrange).max()) or None
-        found = spec.joint(joint)
+        found = joints[joint]
         added = spec.add_actuator(name=f"{joint}_servo", target=joint, trntype=JOINT)
         added.set_to_position(kp=servo.kp, kv=servo.kv)
         if found.range[0] < found.range[1]:  # a joint without a range is refused with its group

@@ -618,14 +618,10 @@ def _servo(value: Any, where: str) -> Servo:
     unknown = sorted(set(value) - {"kp", "kv", "force"})
     if unknown:
         raise DescriptionError(f"{where}.{unknown[0]}: not a field of a servo (kp, kv, force)")
-    numbers = {}
-    for key in ("kp", "kv", "force"):
-        if key not in value:
-            if key == "kp":
-                raise DescriptionError(f"{where}: needs kp, the servo's stiffness (force per rad or m)")
-            continue
-        (number,) = _numbers([value[key]], f"{where}.{key}")
-        if number < 0 or (number == 0 and key != "kv"):
+    if "kp" not in value:
+        raise DescriptionError(f"{where}: needs kp, the servo's stiffness (force per rad or m)")
+    numbers = {key: _numbers([given], f"{where}.{key}")[0] for key, given in value.items()}
+    for key, number in numbers.items():
+        if number < 0 or (number == 0 and key != "kv"):  # no damping is a choice; no stiffness is not
             raise DescriptionError(f"{where}.{key}: must be positive, got {value[key]!r}")
-        numbers[key] = number
     return Servo(**numbers)

@@ -135,7 +135,7 @@ def check_robot(robot: str) -> Iterator[Finding]:
             world.reset()
             yield check()
     handover = task("handover")
-    if handover.fits(describe(robot)):  # the left hand holds the bar by one end for the right to take it
+    if handover.fits(description):  # the left hand holds the bar by one end for the right to take it
         with_bar = tabletop_world((BAR,), robot=robot)
         yield _holds_bar(with_bar, "left", handover.numbers(robot).grip, str(description.file))
 
@@ -330,11 +330,7 @@ def _keeps_hold(world: World, name: str, item) -> Finding:
     model.body_mass[body], model.body_inertia[body] = item.mass, item.inertia  # the family's heaviest
     try:
         _closed_on(world, name, item)
-        heights = []
-        for seconds in (HOLD_SETTLE, HOLD_TIME):
-            for _ in range(round(seconds / model.opt.timestep)):
-                mujoco.mj_step(model, world.data)
-            heights.append(world.object_pose(item.name).position[2])
+        heights = _settled_then_held(world, lambda: world.object_pose(item.name).position[2])
     finally:
         model.body_mass[body], model.body_inertia[body] = saved
     slid = max(float(heights[0] - heights[1]), 0.0)  # risen a hair in the grip: not slid
@@ -349,19 +345,29 @@ def _keeps_hold(world: World, name: str, item) -> Finding:
     )
 
 
+def _settled_then_held(world: World, measure) -> tuple[float, float]:
+    """``measure()`` after :data:`HOLD_SETTLE` s of simulation, and again :data:`HOLD_TIME` s later."""
+    measured = []
+    for seconds in (HOLD_SETTLE, HOLD_TIME):
+        for _ in range(round(seconds / world.model.opt.timestep)):
+            mujoco.mj_step(world.model, world.data)
+        measured.append(measure())
+    return measured[0], measured[1]
+
+
 def _holds_bar(world: World, name: str, grip: float, field: str) -> Finding:
     """The handover's bar closed on :attr:`~besman.tasks.handover.HandoverNumbers.grip` from its middle,
     then its weight on: after :data:`HOLD_SETTLE` s to settle in the grip (a hand may hold it at a slant),
     it must not turn on by more than :data:`BAR_TURN` in :data:`HOLD_TIME` s (a grip whose contacts let it
     creep drops its far end as the arm moves, and the other hand comes down beside it)."""
     _closed_on(world, name, BAR, along=grip)
-    tilts = []
-    for seconds in (HOLD_SETTLE, HOLD_TIME):
-        for _ in range(round(seconds / world.model.opt.timestep)):
-            mujoco.mj_step(world.model, world.data)
+
+    def tilt() -> float:
         length = world.object_pose(BAR.name).rotation[:, 1]
-        tilts.append(float(np.degrees(np.arcsin(np.clip(length[2], -1.0, 1.0)))))
-    turned = abs(tilts[1] - tilts[0])
+        return float(np.degrees(np.arcsin(np.clip(length[2], -1.0, 1.0))))
+
+    settled, held = _settled_then_held(world, tilt)
+    turned = abs(held - settled)
     return Finding(
         name,
         "holds the handover's bar by one end",
