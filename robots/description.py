@@ -81,16 +81,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from besman.skills.errors import BesmanError
-from besman.skills.storage import check_schema_version, optional_field, read_json, require_field
+from besman.robots.fields import (
+    DescriptionError,
+    finite_numbers,
+    json_object,
+    name_list,
+    require,
+)
+from besman.robots.tabletop import TabletopLayout, read_tabletop, task_sections
+from besman.skills.storage import check_schema_version, optional_field, read_json
 
 SCHEMA_VERSION = 2
 # Simulation options a description may set (an attached gripper may need them; the parent's are kept).
 OPTIONS = ("impratio", "cone", "timestep", "noslip_iterations")
-
-
-class DescriptionError(BesmanError):
-    """A robot description file is malformed; the message names the file and the field."""
 
 
 @dataclass(frozen=True)
@@ -173,36 +176,6 @@ class ArmSpec:
 
 
 @dataclass(frozen=True)
-class Board:
-    """A horizontal rectangle: top at ``height``, covering [x0, x1] x [y0, y1] (m, robot frame)."""
-
-    height: float
-    x: tuple[float, float]
-    y: tuple[float, float]
-
-
-Area = tuple[tuple[float, float], tuple[float, float]]  # (x0, x1), (y0, y1)
-
-
-@dataclass(frozen=True)
-class HandPose:
-    """Where a hand goes: ``position`` (m) pointing down, turned by ``yaw`` (rad) about z (None: as it is)."""
-
-    position: tuple[float, float, float]
-    yaw: float | None = None
-
-
-@dataclass(frozen=True)
-class TabletopLayout:
-    """The robot's work surface: the table, the shelf board on it and the area of the table the first arm
-    reaches (top-down grasps)."""
-
-    table: Board
-    shelf: Board
-    reach: Area
-
-
-@dataclass(frozen=True)
 class Mount:
     """Where the robot's root bodies are moved: ``position`` (m) and a turn ``yaw`` (rad) about z."""
 
@@ -251,48 +224,11 @@ class RobotDescription:
         return self.folder / "description.json"
 
 
-def _field(mapping: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
-    return require_field(mapping, key, kind, where, DescriptionError)
-
-
-def _string_list(value: Any, where: str) -> tuple[str, ...]:
-    if not isinstance(value, list) or not all(isinstance(item, str) for item in value):
-        raise DescriptionError(f"{where}: expected a list of names, got {value!r}")
-    if len(set(value)) != len(value):
-        raise DescriptionError(f"{where}: names repeat in {value!r}")
-    return tuple(value)
-
-
-def _numbers(value: Any, where: str, count: int | None = None) -> tuple[float, ...]:
-    if (
-        not isinstance(value, list)
-        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-        or not all(math.isfinite(v) for v in value)
-        or (count is not None and len(value) != count)
-    ):
-        size = f"{count} " if count is not None else ""
-        raise DescriptionError(f"{where}: expected a list of {size}finite numbers, got {value!r}")
-    return tuple(float(v) for v in value)
-
-
-def _range(value: Any, where: str) -> tuple[float, float]:
-    low, high = _numbers(value, where, 2)
-    if not low < high:
-        raise DescriptionError(f"{where}: expected [low, high] with low < high, got {value!r}")
-    return low, high
-
-
-def _object(value: Any, where: str) -> dict[str, Any]:
-    if not isinstance(value, dict):
-        raise DescriptionError(f"{where}: expected an object, got {value!r}")
-    return value
-
-
 def _limits(spec: Any, where: str) -> JointLimitSpec:
-    spec = _object(spec, where)
+    spec = json_object(spec, where)
     values = {}
     for key in ("velocity", "acceleration", "jerk"):
-        value = _field(spec, key, (int, float), where)
+        value = require(spec, key, (int, float), where)
         if not math.isfinite(value) or value <= 0:
             raise DescriptionError(f"{where}.{key}: must be a finite positive number, got {value!r}")
         values[key] = float(value)
@@ -317,30 +253,30 @@ def _model_source(value: Any, where: str) -> ModelSource:
 
 
 def _tcp(value: Any, where: str) -> ToolCentrePoint:
-    value = _object(value, where)
-    site = _field(value, "site", str, where)
+    value = json_object(value, where)
+    site = require(value, "site", str, where)
     body = optional_field(value, "body", str, where, DescriptionError)
     if body is None:
         if set(value) - {"site"}:
             raise DescriptionError(f"{where}: a position or quaternion needs the body the new site is on")
         return ToolCentrePoint(site)
-    quaternion = _numbers(value.get("quaternion", [1, 0, 0, 0]), f"{where}.quaternion", 4)
+    quaternion = finite_numbers(value.get("quaternion", [1, 0, 0, 0]), f"{where}.quaternion", 4)
     if not math.isclose(math.hypot(*quaternion), 1.0, abs_tol=1e-6):
         raise DescriptionError(f"{where}.quaternion: must have unit length, got {list(quaternion)}")
     return ToolCentrePoint(
-        site, body, _numbers(value.get("position", [0, 0, 0]), f"{where}.position", 3), quaternion
+        site, body, finite_numbers(value.get("position", [0, 0, 0]), f"{where}.position", 3), quaternion
     )
 
 
 def _gripper(value: Any, where: str) -> GripperSpec:
-    value = _object(value, where)
-    opening = _numbers(_field(value, "opening", list, where), f"{where}.opening")
+    value = json_object(value, where)
+    opening = finite_numbers(require(value, "opening", list, where), f"{where}.opening")
     actuators = value.get("actuator", [])
-    actuators = _string_list([actuators] if isinstance(actuators, str) else actuators, f"{where}.actuator")
-    command = _field(value, "command", list, where)
+    actuators = name_list([actuators] if isinstance(actuators, str) else actuators, f"{where}.actuator")
+    command = require(value, "command", list, where)
     # One actuator's commands, or a list per actuator (a gripper with an actuator for each finger).
     tables = command if command and all(isinstance(row, list) for row in command) else [command]
-    command = tuple(_numbers(row, f"{where}.command[{i}]") for i, row in enumerate(tables))
+    command = tuple(finite_numbers(row, f"{where}.command[{i}]") for i, row in enumerate(tables))
     if actuators and len(actuators) != len(command):
         raise DescriptionError(
             f"{where}.command: one list of commands per actuator ({len(actuators)}), got {len(command)}"
@@ -353,7 +289,7 @@ def _gripper(value: Any, where: str) -> GripperSpec:
             raise DescriptionError(f"{where}.{name}: must rise or fall strictly, got {list(values)}")
     if min(opening) < 0:
         raise DescriptionError(f"{where}.opening: openings are >= 0 m, got {list(opening)}")
-    grasp_open = _field(value, "open", (int, float), where)
+    grasp_open = require(value, "open", (int, float), where)
     if not min(opening) < grasp_open <= max(opening):
         raise DescriptionError(
             f"{where}.open: must lie in the opening's range "
@@ -364,27 +300,27 @@ def _gripper(value: Any, where: str) -> GripperSpec:
         raise DescriptionError(
             f"{where}.pads: expected two lists of geom or body names (one per side), got {pads!r}"
         )
-    sides = tuple(_string_list(side, f"{where}.pads[{i}]") for i, side in enumerate(pads))
+    sides = tuple(name_list(side, f"{where}.pads[{i}]") for i, side in enumerate(pads))
     if not all(sides):
         raise DescriptionError(f"{where}.pads: each side needs at least one geom")
     still_speed = value.get("still_speed", GripperSpec.still_speed)
     if isinstance(still_speed, bool) or not isinstance(still_speed, int | float) or not still_speed > 0:
         raise DescriptionError(f"{where}.still_speed: must be a number above 0, got {still_speed!r}")
     return GripperSpec(
-        group=_field(value, "group", str, where),
+        group=require(value, "group", str, where),
         actuators=actuators,
         opening=opening,
         command=command,
         open=float(grasp_open),
         pads=(sides[0], sides[1]),
-        limits=_limits(_field(value, "limits", dict, where), f"{where}.limits"),
+        limits=_limits(require(value, "limits", dict, where), f"{where}.limits"),
         still_speed=float(still_speed),
     )
 
 
 def _arm(name: str, value: Any, groups: dict[str, GroupSpec], where: str) -> ArmSpec:
-    value = _object(value, where)
-    members = _string_list(_field(value, "groups", list, where), f"{where}.groups")
+    value = json_object(value, where)
+    members = name_list(require(value, "groups", list, where), f"{where}.groups")
     for group in members:
         if group not in groups:
             raise DescriptionError(f"{where}.groups: no group {group!r}; groups: {', '.join(groups)}")
@@ -394,89 +330,7 @@ def _arm(name: str, value: Any, groups: dict[str, GroupSpec], where: str) -> Arm
         raise DescriptionError(
             f"{where}.gripper.group: no group {gripper.group!r}; groups: {', '.join(groups)}"
         )
-    return ArmSpec(name, members, _tcp(_field(value, "tcp", dict, where), f"{where}.tcp"), gripper)
-
-
-def _board(value: Any, where: str) -> Board:
-    value = _object(value, where)
-    height = _field(value, "height", (int, float), where)
-    return Board(float(height), _range(value.get("x"), f"{where}.x"), _range(value.get("y"), f"{where}.y"))
-
-
-def read_area(value: Any, where: str, board: Board | None = None) -> Area:
-    """An area ``{"x": [x0, x1], "y": [y0, y1]}`` (m); with a ``board``, it must lie on it."""
-    value = _object(value, where)
-    area = _range(value.get("x"), f"{where}.x"), _range(value.get("y"), f"{where}.y")
-    if board is not None and not _inside(area, board):
-        raise DescriptionError(
-            f"{where}: the area x {list(area[0])}, y {list(area[1])} must lie on the board at "
-            f"{board.height} m (x {list(board.x)}, y {list(board.y)})"
-        )
-    return area
-
-
-def read_hand_pose(value: Any, where: str) -> HandPose:
-    """A hand pose ``{"position": [x, y, z], "yaw": rad}`` (yaw optional)."""
-    value = _object(value, where)
-    unknown = sorted(set(value) - {"position", "yaw"})
-    if unknown:
-        raise DescriptionError(f"{where}.{unknown[0]}: not a field of a hand pose (position, yaw)")
-    yaw = value.get("yaw")
-    return HandPose(
-        _numbers(value.get("position"), f"{where}.position", 3),
-        None if yaw is None else _numbers([yaw], f"{where}.yaw")[0],
-    )
-
-
-def section(value: Any, where: str, fields: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
-    """A mapping with exactly the given ``fields``, each a mapping, and maybe ``optional`` ones (a task's
-    section of a description; the task reads those)."""
-    value = _object(value, where)
-    unknown = sorted(set(value) - set(fields) - set(optional))
-    if unknown:
-        raise DescriptionError(f"{where}.{unknown[0]}: not a field here ({', '.join(fields + optional)})")
-    for name in fields:
-        _field(value, name, dict, where)
-    return value
-
-
-def _inside(area: Area, board: Board) -> bool:
-    (x0, x1), (y0, y1) = area
-    return board.x[0] <= x0 and x1 <= board.x[1] and board.y[0] <= y0 and y1 <= board.y[1]
-
-
-# An earlier description's task areas inside "tabletop", and the task section each is read into.
-EARLIER_TASK_FIELDS = {"places": "pick-place", "handover": "handover"}
-
-
-def _tabletop(value: Any, where: str) -> TabletopLayout:
-    value = _object(value, where)
-    unknown = sorted(set(value) - {"table", "shelf", "reach", "objects", *EARLIER_TASK_FIELDS})
-    if unknown:
-        raise DescriptionError(f"{where}.{unknown[0]}: not a field of the tabletop (table, shelf, reach)")
-    table = _board(_field(value, "table", dict, where), f"{where}.table")
-    reach = (
-        "reach" if "reach" in value or "objects" not in value else "objects"
-    )  # "objects": the earlier name
-    return TabletopLayout(
-        table=table,
-        shelf=_board(_field(value, "shelf", dict, where), f"{where}.shelf"),
-        reach=read_area(_field(value, reach, dict, where), f"{where}.{reach}", table),
-    )
-
-
-def _tasks(raw: dict, where: str) -> dict[str, dict]:
-    """The description's task sections, the earlier form's areas in ``tabletop`` among them."""
-    given = _object(raw.get("tasks", {}), f"{where}.tasks")
-    tasks = {name: _object(value, f"{where}.tasks.{name}") for name, value in given.items()}
-    earlier = raw.get("tabletop") or {}
-    for name, task in EARLIER_TASK_FIELDS.items():
-        if name in earlier:
-            if task == name:
-                tasks.setdefault(task, earlier[name])
-            else:
-                tasks.setdefault(task, {}).setdefault(name, earlier[name])
-    return tasks
+    return ArmSpec(name, members, _tcp(require(value, "tcp", dict, where), f"{where}.tcp"), gripper)
 
 
 # The top-level fields of each schema version (an unknown one is refused, not ignored: a misspelt or
@@ -515,26 +369,26 @@ def read_description(path: Path) -> RobotDescription:
         )
 
     groups: dict[str, GroupSpec] = {}
-    for group_name, group in _field(raw, "groups", dict, where).items():
+    for group_name, group in require(raw, "groups", dict, where).items():
         group_where = f"{where}.groups.{group_name}"
-        group = _object(group, group_where)
+        group = json_object(group, group_where)
         groups[group_name] = GroupSpec(
             name=group_name,
-            joints=_string_list(group.get("joints", []), f"{group_where}.joints"),
+            joints=name_list(group.get("joints", []), f"{group_where}.joints"),
             site=optional_field(group, "site", str, group_where, DescriptionError),
-            equalities=_string_list(group.get("equalities", []), f"{group_where}.equalities"),
+            equalities=name_list(group.get("equalities", []), f"{group_where}.equalities"),
         )
     limits = {
         joint: _limits(spec, f"{where}.limits.{joint}")
-        for joint, spec in _field(raw, "limits", dict, where).items()
+        for joint, spec in require(raw, "limits", dict, where).items()
     }
     if raw["schema_version"] == 1:
         return RobotDescription(
-            name=_field(raw, "name", str, where),
+            name=require(raw, "name", str, where),
             title=optional_field(raw, "title", str, where, DescriptionError) or "",
             folder=path.parent,
-            model=ModelSource(_field(raw, "model", str, where)),
-            keyframe=_field(raw, "keyframe", str, where),
+            model=ModelSource(require(raw, "model", str, where)),
+            keyframe=require(raw, "keyframe", str, where),
             groups=groups,
             limits=limits,
         )
@@ -542,25 +396,25 @@ def read_description(path: Path) -> RobotDescription:
     attach = []
     for index, item in enumerate(raw.get("attach", [])):
         item_where = f"{where}.attach[{index}]"
-        item = _object(item, item_where)
+        item = json_object(item, item_where)
         if ("site" in item) == ("body" in item):
             raise DescriptionError(f"{item_where}: give where the part goes, a site or a body (its origin)")
         attach.append(
             Attachment(
                 _model_source(item.get("model"), f"{item_where}.model"),
                 optional_field(item, "site", str, item_where, DescriptionError),
-                _field(item, "prefix", str, item_where),
+                require(item, "prefix", str, item_where),
                 optional_field(item, "body", str, item_where, DescriptionError),
             )
         )
     mount = raw.get("mount")
     if mount is not None:
-        mount = _object(mount, f"{where}.mount")
+        mount = json_object(mount, f"{where}.mount")
         mount = Mount(
-            _numbers(mount.get("position", [0, 0, 0]), f"{where}.mount.position", 3),
-            math.radians(_numbers([mount.get("yaw_degrees", 0)], f"{where}.mount.yaw_degrees")[0]),
+            finite_numbers(mount.get("position", [0, 0, 0]), f"{where}.mount.position", 3),
+            math.radians(finite_numbers([mount.get("yaw_degrees", 0)], f"{where}.mount.yaw_degrees")[0]),
         )
-    options = _object(raw.get("options", {}), f"{where}.options")
+    options = json_object(raw.get("options", {}), f"{where}.options")
     unknown = sorted(set(options) - set(OPTIONS))
     if unknown:
         raise DescriptionError(
@@ -571,28 +425,28 @@ def read_description(path: Path) -> RobotDescription:
         raise DescriptionError(f"{where}.exclude: expected a list of body pairs, got {exclude!r}")
     pairs = []
     for index, pair in enumerate(exclude):
-        names = _string_list(pair, f"{where}.exclude[{index}]")
+        names = name_list(pair, f"{where}.exclude[{index}]")
         if len(names) != 2:
             raise DescriptionError(f"{where}.exclude[{index}]: expected two body names, got {pair!r}")
         pairs.append((names[0], names[1]))
     arms = {
         name: _arm(name, value, groups, f"{where}.arms.{name}")
-        for name, value in _object(raw.get("arms", {}), f"{where}.arms").items()
+        for name, value in json_object(raw.get("arms", {}), f"{where}.arms").items()
     }
     tabletop = raw.get("tabletop")
     switches = {key: raw.get(key, False) for key in ("floor", "velocity_feedforward", "gravity_compensation")}
     for key, value in switches.items():
         if not isinstance(value, bool):
             raise DescriptionError(f"{where}.{key}: expected true or false, got {value!r}")
-    home = _object(raw.get("home", {}), f"{where}.home")
+    home = json_object(raw.get("home", {}), f"{where}.home")
     for joint, position in home.items():
-        _numbers([position], f"{where}.home.{joint}")
+        finite_numbers([position], f"{where}.home.{joint}")
     return RobotDescription(
-        name=_field(raw, "name", str, where),
+        name=require(raw, "name", str, where),
         title=optional_field(raw, "title", str, where, DescriptionError) or "",
         folder=path.parent,
         model=_model_source(raw.get("model"), f"{where}.model"),
-        keyframe=_field(raw, "keyframe", str, where),
+        keyframe=require(raw, "keyframe", str, where),
         groups=groups,
         limits=limits,
         attach=tuple(attach),
@@ -601,26 +455,26 @@ def read_description(path: Path) -> RobotDescription:
         options=options,
         exclude=tuple(pairs),
         arms=arms,
-        tabletop=None if tabletop is None else _tabletop(tabletop, f"{where}.tabletop"),
-        tasks=_tasks(raw, where),
+        tabletop=None if tabletop is None else read_tabletop(tabletop, f"{where}.tabletop"),
+        tasks=task_sections(raw, where),
         velocity_feedforward=switches["velocity_feedforward"],
         gravity_compensation=switches["gravity_compensation"],
         home={joint: float(position) for joint, position in home.items()},
         servos={
             joint: _servo(value, f"{where}.servos.{joint}")
-            for joint, value in _object(raw.get("servos", {}), f"{where}.servos").items()
+            for joint, value in json_object(raw.get("servos", {}), f"{where}.servos").items()
         },
     )
 
 
 def _servo(value: Any, where: str) -> Servo:
-    value = _object(value, where)
+    value = json_object(value, where)
     unknown = sorted(set(value) - {"kp", "kv", "force"})
     if unknown:
         raise DescriptionError(f"{where}.{unknown[0]}: not a field of a servo (kp, kv, force)")
     if "kp" not in value:
         raise DescriptionError(f"{where}: needs kp, the servo's stiffness (force per rad or m)")
-    numbers = {key: _numbers([given], f"{where}.{key}")[0] for key, given in value.items()}
+    numbers = {key: finite_numbers([given], f"{where}.{key}")[0] for key, given in value.items()}
     for key, number in numbers.items():
         if number < 0 or (number == 0 and key != "kv"):  # no damping is a choice; no stiffness is not
             raise DescriptionError(f"{where}.{key}: must be positive, got {value[key]!r}")

@@ -23,7 +23,7 @@ import numpy as np
 import besman.robots as robots
 from besman.robots import Pose, Robot, RobotDescription
 from besman.robots.catalogue import ROBOT
-from besman.robots.description import Board, TabletopLayout
+from besman.robots.tabletop import Board, TabletopLayout
 from besman.sim.objects import GraspableObject
 from besman.sim.perturbations import Perception
 from besman.skills.errors import InputError, UnknownNameError

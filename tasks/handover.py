@@ -6,7 +6,7 @@ The left arm picks the 26 cm bar from the table's left side at one end while the
 other end, the left lets go, rises and goes home, and the right arm puts the bar on the shelf. The poses,
 areas and grip are the robot's (:data:`HANDOVER`, or its description's ``tasks.handover`` section: ``bar``
 and ``places`` areas, ``ready`` and ``present`` hand poses, read as
-:func:`~besman.robots.description.read_area` and :func:`~besman.robots.description.read_hand_pose` read
+:func:`~besman.robots.tabletop.read_area` and :func:`~besman.robots.tabletop.read_hand_pose` read
 them, and optionally ``grip``, :class:`HandoverNumbers`).
 
 - **Randomised**: tau = ``bar`` (x, y of its middle on the table) and ``place`` (x, y of its target on the
@@ -79,8 +79,9 @@ ARMS = ("right", "left")  # the right arm places, the left picks
 
 def _read_handover(section: dict, where: str, layout) -> HandoverNumbers:
     """A description's ``tasks.handover``, its areas on ``layout``'s table and shelf."""
-    from besman.robots.description import DescriptionError, read_area, read_hand_pose
-    from besman.robots.description import section as fields
+    from besman.robots.fields import DescriptionError
+    from besman.robots.tabletop import read_area, read_hand_pose
+    from besman.robots.tabletop import section as fields
 
     section = fields(section, where, ("bar", "places", "ready", "present"), optional=("grip",))
     grip = section.get("grip", GRIP)

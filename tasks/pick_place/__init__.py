@@ -84,7 +84,8 @@ PROPERTIES_STREAM = 1  # the child of the run's seed that draws the object's mas
 
 
 def _read_places(section: dict, where: str, layout):
-    from besman.robots.description import DescriptionError, read_area
+    from besman.robots.fields import DescriptionError
+    from besman.robots.tabletop import read_area
 
     if "places" not in section:
         raise DescriptionError(f"{where}: missing 'places' (the place area on the shelf, x and y ranges)")
