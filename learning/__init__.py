@@ -13,13 +13,17 @@ boundary F1), :mod:`besman.learning.segmentation_plot`,
 :mod:`besman.learning.sequences` (a task's blocks refined together on whole-task rollouts, each credited with
 its cost-to-go, or block by block),
 :mod:`besman.learning.contextual_search` (C-REPS and contextual CMA-ES: one policy over all tasks),
-:mod:`besman.learning.template_selection` (a template's kernel by leave-one-out outcomes),
+:mod:`besman.learning.template_selection` (a template's kernel by outcomes at held-out targets),
+:mod:`besman.learning.feasibility` (the free guard: a proposal whose reference fails pulled back before any
+rollout), :mod:`besman.learning.outcome_refinement` (Gauss-Newton steps in outcome space with Broyden's
+corrections),
 :mod:`besman.learning.retargeting` (a person's movement onto AILA's arm), :mod:`besman.learning.pipeline`
 (``besman learn``: recordings to a template pool of a task's :mod:`building blocks <besman.learning.blocks>`;
 its stages in :mod:`besman.learning.pipeline_labels` and :mod:`besman.learning.pipeline_refinement`, its
 record in :mod:`besman.learning.pipeline_record`, figures by :mod:`besman.learning.pipeline_plots`),
 :mod:`besman.learning.online` (refining a template's instance in a copy of the world) and
-:mod:`besman.learning.throwing_experiment` (the paper's skill-template experiment and the field, judged by
+:mod:`besman.learning.throwing_experiment` (the paper's skill-template experiment, besman's outcome template
+and the field, judged by
 :mod:`besman.learning.throwing_claims`, drawn by :mod:`besman.learning.throwing_plots`;
 :mod:`besman.learning.figures` writes PNGs).
 """

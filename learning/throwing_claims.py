@@ -21,6 +21,14 @@ Goals (issue 25, not the paper's): the prediction at K = curve_k is at least twi
 Learning; the template's prediction beats every zero-shot baseline from K = 4 on; it beats C-REPS and
 contextual CMA-ES at equal total rollouts (each contextual method's latest checkpoint at or below the
 template's cost).
+
+Acceptance (issue 39, written before its run): besman's outcome template never fails a throw, its mean
+never rises from K = 2 on (by more than :data:`NOT_RISING`), it is at most :data:`VERSUS_NEAREST` of nearest
+neighbour's mean from K = 4 and below :data:`OUTCOME_TEMPLATE_MEANS` at their K, its median at K = 10 at
+most 0.4 m; the paper's template fails at most one throw per K and its mean does not rise from K = 4;
+C-REPS is within 1.2 m with at most 2 failed throws at 1,200 rollouts and its median within 0.5 m at 3,600;
+outcome-space refinement at K = curve_k has a median within 0.10 m and a mean within 0.40 m after 3 throws.
+An item whose K or checkpoint the run does not have fails, saying so.
 """
 
 from __future__ import annotations
@@ -139,5 +147,81 @@ def goals(results: dict) -> dict:
             "holds": all(rows for rows in contextual.values())
             and all(row["template"] < row[m] for m, rows in contextual.items() for row in rows),
             "comparisons": contextual,
+        },
+    }
+
+
+NOT_RISING = 0.03  # m: "never rises", for besman's template
+VERSUS_NEAREST = 0.7
+OUTCOME_TEMPLATE_MEANS = {4: 1.0, 6: 0.9, 10: 0.75, 14: 0.6, 20: 0.45}
+OUTCOME_TEMPLATE_MEDIAN = (10, 0.4)
+CREPS_AT = ((1200, 1.2, 2), (3600, 0.5))  # (rollouts, mean, failed), (rollouts, median)
+REFINEMENT = (3, 0.10, 0.40)  # throws, median, mean
+
+
+def _rises(means: np.ndarray, tolerance: float) -> bool:
+    return bool(np.any(np.diff(means) > tolerance))
+
+
+def acceptance(results: dict) -> dict:
+    """Issue 39's acceptance as true/false with the numbers behind it (module documentation)."""
+    ours, paper = results["zero_shot"]["outcome_template"], results["zero_shot"]["template"]
+    nearest = results["zero_shot"]["nearest_neighbour"]
+    ks = [int(k) for k in ours]
+    from_2 = [str(k) for k in ks if k >= 2]
+    from_4 = [str(k) for k in ks if k >= BASELINES_FROM_K]
+    limits = {k: v for k, v in OUTCOME_TEMPLATE_MEANS.items() if str(k) in ours}
+    median_k, median_limit = OUTCOME_TEMPLATE_MEDIAN
+    ours_ok = (
+        all(s["failed"] == 0 for s in ours.values())
+        and not _rises(np.array([ours[k]["mean"] for k in from_2]), NOT_RISING)
+        and all(ours[k]["mean"] <= VERSUS_NEAREST * nearest[k]["mean"] for k in from_4)
+        and len(limits) == len(OUTCOME_TEMPLATE_MEANS)
+        and all(ours[str(k)]["mean"] <= v for k, v in limits.items())
+        and str(median_k) in ours
+        and ours[str(median_k)]["median"] <= median_limit
+    )
+    creps = {int(row[0]): row for row in results["contextual"]["creps"]}
+    (at, mean_limit, failed_limit), (late, median_limit_creps) = CREPS_AT
+    creps_ok = (
+        at in creps
+        and late in creps
+        and creps[at][1] <= mean_limit
+        and creps[at][4] <= failed_limit
+        and creps[late][3] <= median_limit_creps
+    )
+    throws, refine_median, refine_mean = REFINEMENT
+    refinement = results["outcome_refinement"]
+    refinement_ok = (
+        len(refinement) > throws
+        and refinement[throws][3] <= refine_median
+        and refinement[throws][1] <= refine_mean
+    )
+    return {
+        "outcome_template": {
+            "holds": bool(ours_ok),
+            "means": {k: s["mean"] for k, s in ours.items()},
+            "failed": {k: s["failed"] for k, s in ours.items()},
+            "versus_nearest_neighbour": {k: ours[k]["mean"] / nearest[k]["mean"] for k in from_4},
+            f"median_k{median_k}": ours[str(median_k)]["median"] if str(median_k) in ours else None,
+        },
+        "paper_template": {
+            "holds": bool(
+                all(s["failed"] <= 1 for s in paper.values())
+                and not _rises(np.array([paper[k]["mean"] for k in from_4]), 0.0)
+            ),
+            "means": {k: s["mean"] for k, s in paper.items()},
+            "failed": {k: s["failed"] for k, s in paper.items()},
+        },
+        "creps": {
+            "holds": bool(creps_ok),
+            f"mean_at_{at}": creps[at][1] if at in creps else None,
+            f"failed_at_{at}": creps[at][4] if at in creps else None,
+            f"median_at_{late}": creps[late][3] if late in creps else None,
+        },
+        "outcome_refinement": {
+            "holds": bool(refinement_ok),
+            f"median_after_{throws}": refinement[throws][3] if len(refinement) > throws else None,
+            f"mean_after_{throws}": refinement[throws][1] if len(refinement) > throws else None,
         },
     }

@@ -7,8 +7,17 @@ from dataclasses import dataclass
 
 from besman.skills.errors import InputError
 
-SCHEMA_VERSION = 2
-ZERO_SHOT_METHODS = ("template", "per_dimension", "training_mean", "nearest_neighbour", "affine", "crkr")
+SCHEMA_VERSION = 3
+# "template" is the paper's (Metzen et al. 2014), "outcome_template" besman's own.
+ZERO_SHOT_METHODS = (
+    "template",
+    "outcome_template",
+    "per_dimension",
+    "training_mean",
+    "nearest_neighbour",
+    "affine",
+    "crkr",
+)
 CURVE_METHODS = ("tabula_rasa", "weight_proportional", "uncertainty", "isotropic", "nearest_start")
 CONTEXTUAL_METHODS = ("creps", "contextual_cmaes")
 VARIANTS = ("bootstrapped", "goal_only")
@@ -27,6 +36,8 @@ class ExperimentConfig:
     curve_rollouts: int = 68
     spreads: tuple[float, ...] = (0.1, 0.2, 0.3, 0.5, 1.0)
     validation_targets: int = 8
+    jacobian_step: float = 0.05
+    outcome_throws: int = 4
     contextual_rollouts: int = 3600
     contextual_checkpoint: int = 400
     method: str = "cmaes"
@@ -41,14 +52,18 @@ class ExperimentConfig:
             raise InputError(f"curve_k {self.curve_k} must be one of ks {self.ks}")
         if not self.spreads or min(self.spreads) <= 0 or self.validation_targets < 1:
             raise InputError("need positive candidate spreads and at least one validation target")
-        if min(self.training_rollouts, self.refine_rollouts, self.curve_rollouts) < 1:
+        budgets = (self.training_rollouts, self.refine_rollouts, self.curve_rollouts, self.outcome_throws)
+        if min(budgets) < 1:
             raise InputError("rollout budgets must be at least 1")
         if not 1 <= self.contextual_checkpoint <= self.contextual_rollouts:
             raise InputError("contextual_checkpoint must be between 1 and contextual_rollouts")
+        if not self.jacobian_step > 0:
+            raise InputError(f"jacobian_step must be > 0, got {self.jacobian_step!r}")
 
     @classmethod
     def quick(cls, seeds: int = 1) -> ExperimentConfig:
-        """A small run for tests (about a minute): 3 x 3 grid, K in (1, 2, 4), short searches."""
+        """A small run for tests (under a minute): 3 x 3 grid, K in (1, 2, 4), short searches, one validation
+        target inside the box and one on its edge."""
         return cls(
             seeds=seeds,
             ks=(1, 2, 4),
@@ -58,7 +73,8 @@ class ExperimentConfig:
             curve_k=4,
             curve_rollouts=17,
             spreads=(0.1, 1.0),
-            validation_targets=2,
+            validation_targets=1,
+            outcome_throws=2,
             contextual_rollouts=102,
             contextual_checkpoint=51,
         )

@@ -1,7 +1,7 @@
-"""Stage 3 of the throwing experiment, the searches on the grid: learning curves at K = ``curve_k`` (CMA-ES
-tabula rasa, from the template with each of its explorations, and from the nearest training theta), and
-contextual policy search (:mod:`besman.learning.contextual_search`: one policy over the box, its mean thrown
-on the grid at every checkpoint)."""
+"""Stage 3 of the throwing experiment, the searches on the grid at K = ``curve_k``: learning curves of CMA-ES
+(tabula rasa, from the paper's template with each of its explorations, from the nearest training theta),
+every start mean guarded; and besman's outcome-space refinement (:mod:`besman.learning.outcome_refinement`)
+from its outcome template's prediction, a few throws each."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from besman.learning.contextual_search import CREPS, ContextBox, ContextualCMAES, contextual_search
+from besman.learning.outcome_refinement import refine_in_outcome_space
 from besman.learning.policy_search import WarmStart
 from besman.learning.throwing_bench import ThrowingBench
 from besman.learning.throwing_config import CURVE_METHODS
@@ -17,6 +17,8 @@ from besman.learning.throwing_output import RunFolder
 from besman.learning.throwing_spreads import Spreads
 from besman.learning.throwing_templates import Templates
 from besman.learning.throwing_training import TrainingSets
+
+OUTCOME_STEP_CAP = 1.0  # m: how far one step may move the landing the linear model predicts
 
 
 @dataclass
@@ -42,7 +44,14 @@ class LearningCurves:
                 starts = [WarmStart(mean, spread) for mean in means]
             else:
                 template = self.templates.template(seed, k).with_exploration(method)
-                starts = [WarmStart(*template.distribution(tau)) for tau in bench.grid]
+                training = self.training.paper(seed)
+                means, _ = bench.guarded_by_training(
+                    template.predict(bench.grid)[0], training["taus"][:k], training["thetas"][:k], bench.grid
+                )
+                starts = [
+                    WarmStart(mean, template.distribution(tau)[1])
+                    for mean, tau in zip(means, bench.grid, strict=True)
+                ]
             offset = 1000 + CURVE_METHODS.index(method)
             return {
                 "distances": bench.curves(f"seed {seed}: {method}", starts, bench.grid, seed * 7919 + offset)
@@ -50,35 +59,33 @@ class LearningCurves:
 
         return self.folder.stage(f"seed{seed}_curve_{method}", compute)["distances"]
 
-    def contextual(self, seed: int, method: str) -> dict[str, np.ndarray]:
-        """The mean policy's grid distances at every checkpoint of a contextual search."""
+    def outcome_refinement(self, seed: int) -> np.ndarray:
+        """(grid targets, outcome_throws + 1) distances of the best landing so far: from the outcome
+        template's prediction (column 0, its stored landing: no throw) with the Jacobian of the training task
+        its rollout came from."""
 
         def compute():
-            bench, bounds = self.bench, self.bench.task.bounds
-            kind = {"creps": CREPS, "contextual_cmaes": ContextualCMAES}[method]
-            box = ContextBox(np.array(bounds.low), np.array(bounds.high))
-            optimizer = kind(
-                bench.theta0, self.spreads.tabula_rasa_spread, seed=seed * 131 + 17, context_box=box
-            )
-            rows, checkpoints = [], []
+            bench, k, grid = self.bench, self.bench.config.curve_k, self.bench.grid
+            training, jacobians = self.training.paper(seed), self.training.jacobians(seed)
+            chosen = self.training.outcome_template(seed, k, grid)
+            throws = bench.config.outcome_throws
+            with bench.bar(f"seed {seed}: outcome-space refinement", throws * len(grid)) as bar:
 
-            def on_checkpoint(rollouts, policy):
-                checkpoints.append(rollouts)
-                rows.append(bench.distances(policy.policy_mean(bench.grid), bench.grid))
+                def trial(thetas, targets):
+                    bar.update(len(thetas))
+                    return bench.throws(thetas, targets)[1]
 
-            with bench.bar(f"seed {seed}: {method}", bench.config.contextual_rollouts) as bar:
-                contextual_search(
-                    bench.rewards,
-                    optimizer,
-                    budget=bench.config.contextual_rollouts,
-                    sample_contexts=lambda rng, count: rng.uniform(
-                        bounds.low, bounds.high, (count, bounds.size)
-                    ),
-                    seed=seed * 977 + 3,
-                    checkpoint_every=bench.config.contextual_checkpoint,
-                    on_checkpoint=on_checkpoint,
-                    progress=bar.update,
+                distances = refine_in_outcome_space(
+                    trial,
+                    lambda thetas, anchors: bench.guarded(thetas, anchors)[0],
+                    training["outcome_thetas"][chosen],
+                    training["outcome_landings"][chosen],
+                    jacobians["jacobians"][training["outcome_tasks"][chosen]],
+                    grid,
+                    bench.goal_entries,
+                    throws,
+                    OUTCOME_STEP_CAP,
                 )
-            return {"rollouts": np.array(checkpoints), "distances": np.array(rows)}
+            return {"distances": distances}
 
-        return self.folder.stage(f"seed{seed}_{method}", compute)
+        return self.folder.stage(f"seed{seed}_outcome_refinement", compute)["distances"]

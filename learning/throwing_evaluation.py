@@ -1,7 +1,8 @@
 """Stage 3 of the throwing experiment on the grid, at each K: "No Learning" (theta_0 everywhere), every
-zero-shot method (:mod:`besman.skills.zero_shot`, the shared-kernel and the per-dimension template), the
-template refined by CMA-ES, and the variants' templates zero shot. Each is a stage of distances, one per grid
-target."""
+zero-shot method (:mod:`besman.skills.zero_shot`: the paper's shared-kernel template, besman's outcome
+template, the per-dimension template and the baselines; each prediction guarded, and thrown at the
+validation targets too), the paper's template refined by CMA-ES, and the variants' templates zero shot.
+Each is a stage of distances, one per grid target."""
 
 from __future__ import annotations
 
@@ -36,50 +37,79 @@ class GridEvaluation:
         )["distances"]
 
     def per_k(self, seed: int, k: int) -> dict[str, np.ndarray]:
-        """Every zero-shot method's grid distances at K = k, and the template refined."""
+        """Every zero-shot method's distances at K = k on the grid and (``validation_*``) at the validation
+        targets, each prediction guarded (``pulled_back_*``: how many the guard moved), and the template
+        refined by CMA-ES from its guarded prediction."""
 
         def compute():
             bench, grid = self.bench, self.bench.grid
+            targets = np.concatenate([grid, bench.validation])
             training = self.training.paper(seed)
             taus, thetas = training["taus"][:k], training["thetas"][:k]
-            template = self.templates.template(seed, k)
-            inputs, queries = bench.task.bounds.normalise(taus), bench.task.bounds.normalise(grid)
-            per_dimension = SkillTemplate(
-                "throw", template.prototype, taus, thetas, bench.task.bounds, model="per_dimension", seed=seed
-            )
-            predictions = {
-                "template": template.predict(grid)[0],
-                "per_dimension": per_dimension.predict(grid)[0],
-                "training_mean": zero_shot.training_mean(inputs, thetas, queries),
-                "nearest_neighbour": zero_shot.nearest_neighbour(inputs, thetas, queries),
-                "affine": zero_shot.affine_regression(inputs, thetas, queries),
-                "crkr": zero_shot.crkr(
-                    inputs, thetas, queries, np.exp(-distances_of(training["rewards"][:k]))
-                ),
-            }
+            predictions = self.zero_shot_predictions(seed, k, targets)
+            arrays, guarded = {}, {}
+            for method in ZERO_SHOT_METHODS:
+                guarded[method], arrays[f"pulled_back_{method}"] = bench.guarded_by_training(
+                    predictions[method], taus, thetas, targets
+                )
             distances = bench.distances(
-                np.concatenate([predictions[m] for m in ZERO_SHOT_METHODS]),
-                np.tile(grid, (len(ZERO_SHOT_METHODS), 1)),
-            ).reshape(len(ZERO_SHOT_METHODS), len(grid))
-            starts = [WarmStart(*template.distribution(tau)) for tau in grid]
+                np.concatenate([guarded[m] for m in ZERO_SHOT_METHODS]),
+                np.tile(targets, (len(ZERO_SHOT_METHODS), 1)),
+            ).reshape(len(ZERO_SHOT_METHODS), len(targets))
+            for method, row in zip(ZERO_SHOT_METHODS, distances, strict=True):
+                arrays[f"zero_shot_{method}"], arrays[f"validation_{method}"] = (
+                    row[: len(grid)],
+                    row[len(grid) :],
+                )
+            template = self.templates.template(seed, k)
+            spreads = [template.distribution(tau)[1] for tau in grid]
+            starts = [
+                WarmStart(mean, spread)
+                for mean, spread in zip(guarded["template"][: len(grid)], spreads, strict=True)
+            ]
             budget = bench.config.refine_rollouts
             results = bench.search(f"seed {seed}: K={k} refinement", starts, grid, budget, seed + 7 * k)
             refined = [r.curve()[min(budget, r.rollouts), 2] for r in results]
-            return {
-                **{f"zero_shot_{m}": d for m, d in zip(ZERO_SHOT_METHODS, distances, strict=True)},
-                "refined": distances_of(np.array(refined)),
-            }
+            return {**arrays, "refined": distances_of(np.array(refined))}
 
         return self.folder.stage(f"seed{seed}_k{k}", compute)
 
+    def zero_shot_predictions(self, seed: int, k: int, targets: np.ndarray) -> dict[str, np.ndarray]:
+        """Every zero-shot method's thetas (before the guard) for ``targets`` from the first k training tasks
+        (besman's outcome template: from every valid rollout of their searches)."""
+        bench = self.bench
+        training = self.training.paper(seed)
+        taus, thetas = training["taus"][:k], training["thetas"][:k]
+        inputs, queries = bench.task.bounds.normalise(taus), bench.task.bounds.normalise(targets)
+        template = self.templates.template(seed, k)
+        per_dimension = SkillTemplate(
+            "throw", template.prototype, taus, thetas, bench.task.bounds, model="per_dimension", seed=seed
+        )
+        chosen = self.training.outcome_template(seed, k, targets)
+        return {
+            "template": template.predict(targets)[0],
+            "outcome_template": training["outcome_thetas"][chosen],
+            "per_dimension": per_dimension.predict(targets)[0],
+            "training_mean": zero_shot.training_mean(inputs, thetas, queries),
+            "nearest_neighbour": zero_shot.nearest_neighbour(inputs, thetas, queries),
+            "affine": zero_shot.affine_regression(inputs, thetas, queries),
+            "crkr": zero_shot.crkr(inputs, thetas, queries, np.exp(-distances_of(training["rewards"][:k]))),
+        }
+
     def variant_zero_shot(self, seed: int, k: int, variant: str) -> np.ndarray:
         """The grid distances of the template of the first k tasks of the variant's training set."""
+        return self.variant_stage(seed, k, variant)["distances"]
+
+    def variant_stage(self, seed: int, k: int, variant: str) -> dict[str, np.ndarray]:
+        """The variant's template's grid distances and how many of its predictions the guard pulled back."""
         grid = self.bench.grid
-        return self.folder.stage(
-            f"seed{seed}_{variant}_k{k}",
-            lambda: {
-                "distances": self.bench.distances(
-                    self.templates.template(seed, k, variant).predict(grid)[0], grid
-                )
-            },
-        )["distances"]
+
+        def compute():
+            data = self.training.of(seed, variant)
+            predicted = self.templates.template(seed, k, variant).predict(grid)[0]
+            guarded, moved = self.bench.guarded_by_training(
+                predicted, data["taus"][:k], data["thetas"][:k], grid
+            )
+            return {"distances": self.bench.distances(guarded, grid), "pulled_back": np.array(moved)}
+
+        return self.folder.stage(f"seed{seed}_{variant}_k{k}", compute)

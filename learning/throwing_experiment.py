@@ -1,37 +1,49 @@
 """The paper's skill-template experiment on the simulated PA-10 throwing task (Metzen et al. 2014, Fig. 5),
-and the field it is compared with on the same protocol.
+besman's own outcome template, and the field they are compared with on the same protocol.
 
-Protocol (``../shared/reference/learning.md`` sections 3 and 3b), every setting fixed before the run:
+Protocol (``../shared/reference/learning.md`` sections 3, 3b and 3c), every setting fixed before the run and
+none chosen on the evaluation grid:
 
-0. **Spreads** (:mod:`besman.learning.throwing_spreads`): every method that starts a search with a spread of
-   its own chooses it by one procedure, on ``validation_targets`` targets drawn from the box with their own
-   seed (never the evaluation grid): for each of ``spreads``, CMA-ES from the method's start for
-   ``curve_rollouts`` rollouts per target; the spread with the lowest mean distance of the best rollout so
-   far, averaged over rollouts 1..curve_rollouts (the area under the learning curve) wins. Two methods have
-   one: tabula rasa (from theta_0, the shipped throw towards (-3.5, -3.6); the training searches, the
-   template's prior exploration and the contextual methods' start use it too) and CMA-ES from the nearest
-   training theta (seed 0's first ``curve_k`` training tasks). These rollouts are reported apart.
+0. **Validation targets and spreads** (:func:`besman.learning.throwing_bench.validation_targets`,
+   :mod:`besman.learning.throwing_spreads`): ``validation_targets`` targets drawn from the box and as many on
+   its edges, with their own seed; every setting below is chosen on them. Every method that starts a search
+   with a spread of its own chooses it by one procedure: for each of ``spreads``, CMA-ES from the method's
+   start for ``curve_rollouts`` rollouts per target; the spread with the lowest mean distance of the best
+   rollout so far, averaged over rollouts 1..curve_rollouts (the area under the learning curve) wins. Two
+   methods have one: tabula rasa (from theta_0, the shipped throw towards (-3.5, -3.6); the training
+   searches, the template's prior exploration and the contextual methods' start use it too) and CMA-ES from
+   the nearest training theta (seed 0's first ``curve_k`` training tasks). These rollouts are reported apart.
 1. **Training** (per seed, :mod:`besman.learning.throwing_training`): ``max(ks)`` targets drawn uniformly from
    the box, each learned by CMA-ES for ``training_rollouts`` rollouts from theta_0 with the tabula-rasa
-   spread; theta_i is the best rollout's theta. The first K of them train everything "at K".
-2. **Templates at K** (:mod:`besman.learning.throwing_templates`): the shared-kernel template
-   (:mod:`besman.skills.template_models`), its kernel chosen by leave-one-out throws at the training targets
+   spread; theta_i is the best rollout's theta, and every rollout that landed is kept with its landing. The
+   landing's Jacobian in the 16 goal coordinates at each theta_i, by central differences of
+   ``jacobian_step`` (33 rollouts per task, counted). The first K tasks train everything "at K".
+2. **Templates at K** (:mod:`besman.learning.throwing_templates`): the paper's shared-kernel template
+   (:mod:`besman.skills.template_models`), its kernel chosen by throws at the validation targets
    (:mod:`besman.learning.template_selection`, rollouts counted), prior exploration the tabula-rasa spread;
-   and the per-dimension template of the first reproduction for comparison.
-3. **Evaluation** on the ``grid`` x ``grid`` targets covering the box
-   (:mod:`besman.learning.throwing_evaluation`, the searches in :mod:`besman.learning.throwing_curves`):
+   besman's outcome template (:func:`besman.skills.zero_shot.nearest_outcome`: the training rollout whose
+   landing is nearest the target); the per-dimension template of the first reproduction for comparison.
+3. **The guard** (:mod:`besman.learning.feasibility`): every theta any method proposes (a zero-shot
+   prediction, a search's start mean, a contextual method's proposal and mean) whose reference would fail
+   is pulled back toward a feasible anchor before it is thrown, and counted.
+4. **Evaluation** on the ``grid`` x ``grid`` targets covering the box
+   (:mod:`besman.learning.throwing_evaluation`, the searches in :mod:`besman.learning.throwing_curves` and
+   :mod:`besman.learning.throwing_contextual`):
    - "No Learning": theta_0 everywhere;
-   - zero shot at each K: the template's Theta(tau), the per-dimension template, the mean of the training
-     thetas, the nearest training theta, affine regression and CrKR (:mod:`besman.skills.zero_shot`);
-   - the template refined by CMA-ES from N(Theta(tau), Omega(tau)), the best of ``refine_rollouts``
+   - zero shot at each K, on the grid and at the validation targets: the paper's template, besman's outcome
+     template, the per-dimension template, the mean of the training thetas, the nearest training theta,
+     affine regression and CrKR (:mod:`besman.skills.zero_shot`);
+   - the paper's template refined by CMA-ES from N(Theta(tau), Omega(tau)), the best of ``refine_rollouts``
      rollouts, at each K;
    - learning curves at K = ``curve_k`` (distance of the best rollout so far; rollout 0 is the start mean):
-     CMA-ES tabula rasa, from the template with weight-proportional, uncertainty and isotropic (same trace)
-     exploration, and from the nearest training theta with its own spread;
-   - contextual policy search (:mod:`besman.learning.contextual_search`): C-REPS and contextual CMA-ES learn
-     one policy over contexts drawn from the box, from theta_0 with the tabula-rasa spread, for
-     ``contextual_rollouts`` rollouts; their mean policy is thrown on the grid every
-     ``contextual_checkpoint`` rollouts;
+     CMA-ES tabula rasa, from the paper's template with weight-proportional, uncertainty and isotropic (same
+     trace) exploration, and from the nearest training theta with its own spread; and besman's outcome-space
+     refinement from its outcome template, ``outcome_throws`` throws (:mod:`besman.learning.
+     outcome_refinement`);
+   - contextual policy search: C-REPS and contextual CMA-ES, their settings chosen among declared candidates
+     on the validation targets by one procedure, learn one policy over contexts drawn from the box, from
+     theta_0 with the tabula-rasa spread, for ``contextual_rollouts`` rollouts; their mean policy is thrown
+     on the grid every ``contextual_checkpoint`` rollouts;
    - variants beyond the paper: *bootstrapped* (the training tasks learned in sequence, each from the
      template of the tasks before it, Queisser and Steil 2018) and *goal only* (training and template over
      the DMP's goals and goal velocities alone, 16 of the 96 numbers, the weights kept at theta_0's: the
@@ -39,14 +51,14 @@ Protocol (``../shared/reference/learning.md`` sections 3 and 3b), every setting 
 
 Distance to target is sqrt(-reward): the landing's distance for a valid throw; a failed throw (reward
 <= -1000) counts as at least 31.6 m off and is counted as failed. Summaries over grid targets and seeds
-together: mean +- SEM, median and failed throws. Every method's cost is its total rollouts (training and
-kernel choice included) for the field plot. Every stage is written to ``DIR/work`` when it completes
-(atomically), so an interrupted run resumes where it stopped; a DIR that holds a run with another
-configuration, or files that no run of it wrote, is refused (:mod:`besman.learning.throwing_output`).
-``results.json`` is gathered by :mod:`besman.learning.throwing_results`; the paper's claims and the goals
-are judged in :mod:`besman.learning.throwing_claims`. The settings are
-:mod:`besman.learning.throwing_config`'s; the task, its targets and the rollouts,
-:mod:`besman.learning.throwing_bench`'s.
+together: mean +- SEM, median, failed throws and the mean of the throws that did not fail. Every method's cost
+is its total rollouts (training, kernel choice and Jacobians where it uses them) for the field plot. Every
+stage is written to ``DIR/work`` when it completes (atomically), so an interrupted run resumes where it
+stopped; a DIR that holds a run with another configuration, or files that no run of it wrote, is refused
+(:mod:`besman.learning.throwing_output`). ``results.json`` is gathered by
+:mod:`besman.learning.throwing_results`; the paper's claims, the goals and issue 39's acceptance are judged
+in :mod:`besman.learning.throwing_claims`. The settings are :mod:`besman.learning.throwing_config`'s; the
+task, its targets, the guard and the rollouts, :mod:`besman.learning.throwing_bench`'s.
 """
 
 from __future__ import annotations
@@ -64,6 +76,7 @@ from besman.learning.throwing_config import (
     ZERO_SHOT_METHODS,
     ExperimentConfig,
 )
+from besman.learning.throwing_contextual import ContextualSearches
 from besman.learning.throwing_curves import LearningCurves
 from besman.learning.throwing_evaluation import GridEvaluation
 from besman.learning.throwing_output import RunFolder
@@ -108,6 +121,7 @@ class Experiment:
         self.templates = Templates(self.bench, self.folder, self.training, builder)
         self.evaluation = GridEvaluation(self.bench, self.folder, self.training, self.templates)
         self.curves = LearningCurves(self.bench, self.folder, self.spreads, self.training, self.templates)
+        self.contextual = ContextualSearches(self.bench, self.folder, self.spreads)
 
     def run(self) -> dict:
         """Runs (or resumes) every stage and writes results.json, fig5_top.png, fig5_bottom.png,

@@ -1,7 +1,9 @@
 """The throwing experiment's ``results.json``: every stage's distances summarised over grid targets and seeds
-together (mean +- SEM, median, failed throws), each method's rollouts, the field (every method against its
-total rollouts), the training sets' diagnostics, and the paper's claims and the goals judged by
-:mod:`besman.learning.throwing_claims`."""
+together (mean +- SEM, median, failed throws and the mean of the throws that did not fail), the zero-shot
+methods at the validation targets too, what the feasibility guard pulled back, the contextual methods'
+settings and how they were chosen, each method's rollouts, the field (every method against its total
+rollouts), the training sets' diagnostics, and the paper's claims, the goals and issue 39's acceptance judged
+by :mod:`besman.learning.throwing_claims`."""
 
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from besman.learning.throwing_bench import distances_of
-from besman.learning.throwing_claims import claims, goals, rollouts_to_reach
+from besman.learning.throwing_claims import acceptance, claims, goals, rollouts_to_reach
 from besman.learning.throwing_config import (
     CONTEXTUAL_METHODS,
     CURVE_METHODS,
@@ -21,6 +23,7 @@ from besman.learning.throwing_config import (
     VARIANTS,
     ZERO_SHOT_METHODS,
 )
+from besman.learning.throwing_contextual import CANDIDATES as CONTEXTUAL_CANDIDATES
 from besman.sim.throwing import FAILURE_REWARD
 
 if TYPE_CHECKING:  # the experiment wires the stages that the results are gathered from
@@ -38,21 +41,36 @@ def collect_results(experiment: Experiment) -> dict:
     }
     evaluation = experiment.evaluation
     no_learning = np.tile(evaluation.no_learning(), config.seeds)
-    zero, refined, costs = {m: {} for m in ZERO_SHOT_METHODS}, {}, {}
+    zero, validation, pulled_back = ({m: {} for m in ZERO_SHOT_METHODS} for _ in range(3))
+    refined, costs = {}, {}
     for k in config.ks:
         stages = [evaluation.per_k(seed, k) for seed in seeds]
         for method in ZERO_SHOT_METHODS:
             zero[method][k] = np.concatenate([s[f"zero_shot_{method}"] for s in stages])
+            validation[method][k] = np.concatenate([s[f"validation_{method}"] for s in stages])
+            pulled_back[method][k] = int(sum(int(s[f"pulled_back_{method}"]) for s in stages))
         refined[k] = np.concatenate([s["refined"] for s in stages])
         costs[k] = _cost(experiment, k, "training")
     curves = {m: np.concatenate([experiment.curves.curves(seed, m) for seed in seeds]) for m in CURVE_METHODS}
-    contextual = {}
+    outcome_refinement = np.concatenate([experiment.curves.outcome_refinement(seed) for seed in seeds])
+    contextual, guarded_contextual = {}, {}
     for method in CONTEXTUAL_METHODS:
-        stages = [experiment.curves.contextual(seed, method) for seed in seeds]
+        stages = [experiment.contextual.run(seed, method) for seed in seeds]
         contextual[method] = (
             stages[0]["rollouts"],
             np.concatenate([s["distances"] for s in stages], axis=1),
         )
+        guarded_contextual[method] = {
+            "proposals": int(sum(int(s["proposals_pulled_back"]) for s in stages)),
+            "grid_means_per_checkpoint": np.sum([s["means_pulled_back"] for s in stages], axis=0).tolist(),
+        }
+    variants_pulled_back = {
+        v: {
+            str(k): sum(int(evaluation.variant_stage(s, k, v)["pulled_back"]) for s in seeds)
+            for k in config.ks
+        }
+        for v in VARIANTS
+    }
     variants = {
         v: {
             k: (
@@ -78,13 +96,32 @@ def collect_results(experiment: Experiment) -> dict:
         },
         "no_learning": summary(no_learning),
         "zero_shot": {m: {str(k): summary(v) for k, v in by_k.items()} for m, by_k in zero.items()},
+        "validation": {m: {str(k): summary(v) for k, v in by_k.items()} for m, by_k in validation.items()},
+        "pulled_back": {
+            "zero_shot": {m: {str(k): n for k, n in by_k.items()} for m, by_k in pulled_back.items()},
+            "contextual": guarded_contextual,
+            "variants": variants_pulled_back,
+        },
         "template_refined": {str(k): summary(v) for k, v in refined.items()},
         "curves": {
             m: [[r, *summary(v[:, r]).values()] for r in range(v.shape[1])] for m, v in curves.items()
         },
+        "outcome_refinement": [
+            [r, *summary(outcome_refinement[:, r]).values()] for r in range(outcome_refinement.shape[1])
+        ],
         "contextual": {
             m: [[int(r), *summary(d[i]).values()] for i, r in enumerate(rollouts)]
             for m, (rollouts, d) in contextual.items()
+        },
+        "contextual_settings": {
+            method: {
+                "candidates": [asdict(candidate) for candidate in CONTEXTUAL_CANDIDATES[method]],
+                "validation_areas": stage["scores"].tolist(),
+                "chosen": asdict(CONTEXTUAL_CANDIDATES[method][int(stage["chosen"])]),
+                "rollouts": int(stage["rollouts"]),
+            }
+            for method in CONTEXTUAL_METHODS
+            for stage in [experiment.contextual.settings(method)]
         },
         "variants": {
             v: {str(k): {**summary(d), "rollouts": c} for k, (d, c) in by_k.items()}
@@ -99,19 +136,26 @@ def collect_results(experiment: Experiment) -> dict:
     results["training"] = [_diagnose_training(experiment, seed) for seed in seeds]
     results["claims"] = claims(results)
     results["goals"] = goals(results)
+    results["acceptance"] = acceptance(results)
     return results
 
 
 def _cost(experiment: Experiment, k: int, source: str) -> dict[str, float]:
-    """Mean rollouts over seeds behind the first k tasks of ``source``: their training, and the shared
-    template's leave-one-out throws for its kernel."""
+    """Mean rollouts over seeds behind the first k tasks of ``source``: their training, the paper's template's
+    validation throws for its kernel and (for the paper's training set) the Jacobians of outcome-space
+    refinement."""
     seeds = range(experiment.config.seeds)
-    return {
+    cost = {
         "training": float(np.mean([experiment.training.of(s, source)["rollouts"][:k].sum() for s in seeds])),
         "kernel_choice": float(
             np.mean([int(experiment.templates.kernel_choice(s, k, source)["rollouts"]) for s in seeds])
         ),
     }
+    if source == "training":
+        cost["jacobians"] = float(
+            np.mean([experiment.training.jacobians(s)["rollouts"][:k].sum() for s in seeds])
+        )
+    return cost
 
 
 def _diagnose_training(experiment: Experiment, seed: int) -> dict:
@@ -130,7 +174,8 @@ def _diagnose_training(experiment: Experiment, seed: int) -> dict:
         "kernels": {
             str(k): {
                 "kernel": json.loads(str(choice["kernel"])),
-                "leave_one_out_distances": choice["losses"].tolist(),
+                "validation_distances": choice["losses"].tolist(),
+                "pulled_back": int(choice["pulled_back"]),
             }
             for k in experiment.config.ks
             for choice in [experiment.templates.kernel_choice(seed, k)]
@@ -139,22 +184,27 @@ def _diagnose_training(experiment: Experiment, seed: int) -> dict:
 
 
 def summary(values: np.ndarray) -> dict:
-    """Mean, its standard error, median and the number of failed throws (and how many there are)."""
+    """Mean, its standard error, median, the number of failed throws, how many there are, and the mean of
+    the throws that did not fail (None if all did)."""
     values = np.asarray(values, dtype=float)
     sem = float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else 0.0
+    failed = values >= FAILED_DISTANCE - 1e-9
     return {
         "mean": float(values.mean()),
         "sem": sem,
         "median": float(np.median(values)),
-        "failed": int((values >= FAILED_DISTANCE - 1e-9).sum()),
+        "failed": int(failed.sum()),
         "count": len(values),
+        "non_failed_mean": float(values[~failed].mean()) if (~failed).any() else None,
     }
 
 
 def field_series(results: dict) -> dict[str, list[list[float]]]:
     """Every method as rows [total rollouts, mean, sem, median, failed] on the grid (module documentation):
-    a zero-shot method at K costs K training tasks (and the template its kernel choice), a refinement its
-    start's cost plus the rollouts of the new task."""
+    a zero-shot method at K costs K training tasks (and the paper's template its kernel choice), a refinement
+    its start's cost plus the rollouts of the new task (outcome-space refinement: the training tasks'
+    Jacobians too); the contextual methods' rollouts exclude the choice of their settings, as the spreads'
+    are excluded from every method."""
     config, costs = results["config"], {int(k): c for k, c in results["rollouts"].items()}
     training = {k: c["training"] for k, c in costs.items()}
     template = {k: c["training"] + c["kernel_choice"] for k, c in costs.items()}
@@ -166,6 +216,9 @@ def field_series(results: dict) -> dict[str, list[list[float]]]:
     for method, by_k in results["zero_shot"].items():
         cost = template if method == "template" else training
         series[f"zero_shot_{method}"] = [row(cost[int(k)], s) for k, s in by_k.items()]
+    curve_k = config["curve_k"]
+    outcome_start = training[curve_k] + costs[curve_k].get("jacobians", 0.0)
+    series["outcome_refinement"] = [[outcome_start + r[0], *r[1:5]] for r in results["outcome_refinement"]]
     series["template_refined"] = [
         row(template[int(k)] + config["refine_rollouts"], s) for k, s in results["template_refined"].items()
     ]
@@ -173,9 +226,9 @@ def field_series(results: dict) -> dict[str, list[list[float]]]:
         start = {"tabula_rasa": 0, "nearest_start": training[config["curve_k"]]}.get(
             method, template[config["curve_k"]]
         )
-        series[f"curve_{method}"] = [[start + r[0], *r[1:]] for r in rows]
+        series[f"curve_{method}"] = [[start + r[0], *r[1:5]] for r in rows]
     for method, rows in results["contextual"].items():
-        series[method] = [[float(r[0]), *r[1:]] for r in rows]
+        series[method] = [[float(r[0]), *r[1:5]] for r in rows]
     for variant, by_k in results["variants"].items():
         series[f"variant_{variant}"] = [
             row(s["rollouts"]["training"] + s["rollouts"]["kernel_choice"], s) for s in by_k.values()

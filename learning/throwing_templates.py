@@ -1,7 +1,7 @@
-"""Stage 2 of the throwing experiment: skill templates of the first K tasks of a training set - the
-shared-kernel model (:mod:`besman.skills.template_models`), its kernel chosen by leave-one-out throws at the
-training targets (:mod:`besman.learning.template_selection`, rollouts counted), its prior exploration the
-tabula-rasa spread."""
+"""Stage 2 of the throwing experiment: the paper's skill templates of the first K tasks of a training set -
+the shared-kernel model (:mod:`besman.skills.template_models`), its kernel chosen by throws at the held-out
+validation targets, half on the box's edges (:mod:`besman.learning.template_selection`; each prediction
+guarded, the rollouts counted), its prior exploration the tabula-rasa spread."""
 
 from __future__ import annotations
 
@@ -62,17 +62,26 @@ class Templates:
     builder: TemplateBuilder
 
     def kernel_choice(self, seed: int, k: int, source: str = "training") -> dict[str, np.ndarray]:
-        """The shared kernel for the first k tasks of ``source``, by leave-one-out throws."""
+        """The shared kernel for the first k tasks of ``source``, by throws at the validation targets; and
+        how many of those predictions the guard pulled back."""
 
         def compute():
-            data = self.training.of(seed, source)
-            choice = choose_kernel(
-                data["taus"][:k], data["thetas"][:k], self.bench.task.bounds, self.bench.distances
-            )
+            bench, data = self.bench, self.training.of(seed, source)
+            taus, thetas = data["taus"][:k], data["thetas"][:k]
+            pulled_back = 0
+
+            def loss(predicted, targets):
+                nonlocal pulled_back
+                guarded, moved = bench.guarded_by_training(predicted, taus, thetas, targets)
+                pulled_back += moved
+                return bench.distances(guarded, targets)
+
+            choice = choose_kernel(taus, thetas, bench.task.bounds, bench.validation, loss)
             return {
                 "kernel": np.array(json.dumps(asdict(choice.kernel))),
                 "losses": np.array(choice.losses),
                 "rollouts": np.array(choice.rollouts),
+                "pulled_back": np.array(pulled_back),
             }
 
         return self.folder.stage(f"seed{seed}_{source}_k{k}_kernel", compute)

@@ -270,6 +270,17 @@ class ThrowingTask(BatchedTask):
                 ), violation
         return None, 0.0
 
+    def feasible(self, thetas) -> np.ndarray:
+        """Whether each theta's reference keeps the joint ranges and speed limits and releases the ball: the
+        checks :meth:`evaluate` makes before it simulates, without a rollout (a NaN or inf is infeasible)."""
+        thetas = np.array(thetas, dtype=float, ndmin=2)
+        finite = np.isfinite(thetas).all(axis=1)
+        feasible = np.zeros(len(thetas), dtype=bool)
+        if finite.any():
+            _, failures, _, _ = self.controls(thetas[finite])
+            feasible[finite] = [failure is None for failure in failures]
+        return feasible
+
     # -- evaluation ----------------------------------------------------------------------------------------
 
     def evaluate(self, thetas, taus, *, backend: str = "threads", nan: str = "raise") -> Evaluation:

@@ -27,8 +27,8 @@ the prediction is then a mixture of learned thetas and never extrapolates beyond
 weights can combine feasible throws into an infeasible one). The hyperparameters (l, r, the weights'
 form) are shared by all outputs; they are not fitted by marginal likelihood in theta space, which the
 harmless null-space noise dominates (it picks heavy shrinkage), but given
-(:class:`~besman.skills.shared_kernel.SharedKernel`) or chosen by the outcome of leave-one-out predictions
-(:func:`leave_one_out_means`; :mod:`besman.learning.template_selection` tries them out).
+(:class:`~besman.skills.shared_kernel.SharedKernel`) or chosen by the outcome of predictions at held-out
+targets (:mod:`besman.learning.template_selection` tries them out).
 
 Omega: per-coordinate spread between a prior and the data
 ----------------------------------------------------------

@@ -16,6 +16,10 @@ fixed ones are stated with their reasons.
   kernel is the shared template's default (squared exponential, 0.6 box widths), lambda = 0.5, and Gamma
   is centred on the training mean (the uncentred form shrinks every prediction towards theta = 0, no
   throw at all); fixed before any run.
+- :func:`nearest_outcome` - besman's outcome template: every rollout of the training searches relabelled
+  with the task it did solve (where its throw landed, hindsight relabelling), and the theta whose outcome is
+  nearest the query. It needs a task whose outcome lives in the task space (a landing for a target) and the
+  rollouts' outcomes, which the paper's template throws away.
 """
 
 from __future__ import annotations
@@ -34,6 +38,12 @@ def training_mean(inputs: np.ndarray, thetas: np.ndarray, queries: np.ndarray) -
 def nearest_neighbour(inputs: np.ndarray, thetas: np.ndarray, queries: np.ndarray) -> np.ndarray:
     distances = ((queries[:, None, :] - inputs[None, :, :]) ** 2).sum(axis=2)
     return thetas[np.argmin(distances, axis=1)]
+
+
+def nearest_outcome(outcomes: np.ndarray, thetas: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """For each query (N, m), the theta (of ``thetas`` (M, n)) whose outcome (of ``outcomes`` (M, m), in the
+    queries' units) is nearest: the relabelled rollout that did what the query asks, or came closest."""
+    return nearest_neighbour(outcomes, thetas, queries)
 
 
 def affine_regression(inputs: np.ndarray, thetas: np.ndarray, queries: np.ndarray) -> np.ndarray:

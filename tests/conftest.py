@@ -18,6 +18,7 @@ LONG_FIRST = (
     "test_benchmarks.py",
     "test_throwing_experiment.py",
     "test_hardening.py",
+    "test_widowx_pair.py",
     "test_widowx.py",
     "test_ur5e.py",
 )

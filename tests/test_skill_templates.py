@@ -130,15 +130,21 @@ def test_the_shared_weights_recover_a_map_whose_outcome_lies_in_a_few_directions
     """The outcome of a combination of whole training thetas is the same combination of their outcomes, so
     the null-space noise cannot spoil it; per-dimension GPs see 40 noisy series and mix coordinates of
     different thetas. Both predict at held-out tasks; the shared model's kernel is chosen by leave-one-out
-    outcomes (no test task involved)."""
+    outcomes at held-out validation targets (no test task involved)."""
     taus, thetas, outcome, solution = null_space_problem(16, seed=3)
     tests = np.random.default_rng(4).uniform(BOX.low, BOX.high, size=(50, 2))
+    validation = np.random.default_rng(5).uniform(BOX.low, BOX.high, size=(8, 2))
 
     def outcome_error(predicted, at):
         return np.linalg.norm(predicted @ outcome.T - solution(at), axis=1)
 
-    choice = choose_kernel(taus, thetas, BOX, outcome_error)
-    assert choice.rollouts == len(CANDIDATES) * len(taus)
+    choice = choose_kernel(taus, thetas, BOX, validation, outcome_error)
+    assert choice.rollouts == len(CANDIDATES) * len(validation) and len(choice.losses) == len(CANDIDATES)
+    assert choice.kernel == CANDIDATES[int(np.argmin(choice.losses))]
+    # One task: every candidate predicts its theta, so nothing is thrown.
+    assert choose_kernel(taus[:1], thetas[:1], BOX, validation, outcome_error).rollouts == 0
+    # No interpolating kriging among the candidates: its weights extrapolate at the box's edges.
+    assert not [k for k in CANDIDATES if k.weights == "kriging" and k.noise < 0.1]
     prototype = MovementPrimitive(DMP(4, settings=DMPSettings(n_weights=8)), "p")
     shared = SkillTemplate("p", prototype, taus, thetas, BOX, kernel=choice.kernel, prior_spread=0.3)
     per_dimension = SkillTemplate("p", prototype, taus, thetas, BOX, model="per_dimension")
@@ -215,6 +221,11 @@ def test_the_zero_shot_baselines_follow_their_definitions():
     at_task = inputs[2:3]
     trusted_gap = np.abs(zero_shot.crkr(inputs, thetas, at_task, rewards) - thetas[2]).sum()
     assert np.abs(zero_shot.crkr(inputs, thetas, at_task, distrusted) - thetas[2]).sum() > 2 * trusted_gap
+    # The outcome template: the theta whose own outcome is nearest, wherever its training task was.
+    outcomes = rng.uniform(size=(6, 2))
+    np.testing.assert_array_equal(
+        zero_shot.nearest_outcome(outcomes, thetas, outcomes[[5, 0]] + 1e-6), thetas[[5, 0]]
+    )
 
 
 def test_bad_template_input_is_refused_by_name():

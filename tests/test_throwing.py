@@ -192,3 +192,17 @@ def test_ray_backend_gives_identical_landings(task):
         assert sum(d.failure is None for d in local.details) >= 4
     finally:
         ray.shutdown()
+
+
+def test_feasible_is_the_reference_check_evaluate_makes_before_it_simulates(task):
+    """The guard's check costs no rollout and agrees with evaluate: a theta it calls infeasible fails there
+    for its reference's sake, one it passes fails (if at all) only in the simulation."""
+    rng = np.random.default_rng(11)
+    thetas = task.default_theta() + rng.normal(size=(24, task.n_params)) * np.linspace(0.0, 4.0, 24)[:, None]
+    thetas[3] = np.nan
+    feasible = task.feasible(thetas)
+    assert feasible[0] and not feasible[3] and feasible.sum() not in (0, len(thetas) - 1)
+    details = task.evaluate(thetas, np.tile([-3.5, -3.6], (len(thetas), 1)), nan="penalize").details
+    reference_failures = ("the reference", "never released", "theta contains NaN")
+    for ok, detail in zip(feasible, details, strict=True):
+        assert ok != (detail.failure is not None and detail.failure.startswith(reference_failures)), detail

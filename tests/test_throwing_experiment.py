@@ -1,5 +1,5 @@
 """The paper's throwing experiment (Fig. 5) and the field: the quick run end to end, resuming, the summaries,
-the field's rollout accounting, and the claims and goals on hand-made results."""
+the field's rollout accounting, and the claims, goals and acceptance on hand-made results."""
 
 import itertools
 import json
@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 from PIL import Image
 
-from besman.learning.throwing_claims import A_ROLLOUTS, claims, goals, rollouts_to_reach
+from besman.learning.throwing_claims import A_ROLLOUTS, acceptance, claims, goals, rollouts_to_reach
+from besman.learning.throwing_contextual import CANDIDATES
 from besman.learning.throwing_experiment import (
     CONTEXTUAL_METHODS,
     CURVE_METHODS,
@@ -45,13 +46,21 @@ def test_the_quick_experiment_writes_results_and_figures_and_resumes(quick_run, 
     out, stdout = quick_run
     results = json.loads((out / "results.json").read_text())
     config = results["config"]
-    assert results["schema_version"] == 2 and config["grid"] == 3
+    assert results["schema_version"] == 3 and config["grid"] == 3
     ks = [str(k) for k in config["ks"]]
-    assert set(results["zero_shot"]) == set(ZERO_SHOT_METHODS)
+    assert set(results["zero_shot"]) == set(results["validation"]) == set(ZERO_SHOT_METHODS)
     for by_k in (*results["zero_shot"].values(), results["template_refined"]):
         assert list(by_k) == ks
         for s in by_k.values():
             assert s["count"] == 9 and 0 <= s["failed"] <= 9 and s["mean"] > 0 and s["median"] > 0
+    for by_k in results["validation"].values():  # 1 + 1 held-out targets, one on the box's edge
+        assert list(by_k) == ks and all(s["count"] == 2 for s in by_k.values())
+    # Every proposal was guarded: the guard's work is counted for every zero-shot method and K.
+    assert set(results["pulled_back"]["zero_shot"]) == set(ZERO_SHOT_METHODS)
+    assert all(0 <= n <= 11 for by_k in results["pulled_back"]["zero_shot"].values() for n in by_k.values())
+    # besman's outcome template never fails: its thetas are training rollouts that landed.
+    assert all(s["failed"] == 0 for s in results["zero_shot"]["outcome_template"].values())
+    assert results["pulled_back"]["zero_shot"]["outcome_template"] == {k: 0 for k in ks}
     # Every spread was chosen among the candidates on validation targets, its rollouts counted.
     for choice in results["spreads"].values():
         assert choice["chosen"] in choice["candidates"] and choice["rollouts"] > 0
@@ -65,21 +74,34 @@ def test_the_quick_experiment_writes_results_and_figures_and_resumes(quick_run, 
     for method in ("uncertainty", "weight_proportional", "isotropic"):
         assert results["curves"][method][0][1] == pytest.approx(prediction)
     assert results["curves"]["tabula_rasa"][0][1] == pytest.approx(results["no_learning"]["mean"])
+    # Outcome-space refinement starts at the outcome template's prediction (its stored landing, thrown
+    # again on the grid, lands exactly there) and only improves.
+    refinement = results["outcome_refinement"]
+    assert [row[0] for row in refinement] == list(range(config["outcome_throws"] + 1))
+    outcome_template = results["zero_shot"]["outcome_template"][str(config["curve_k"])]
+    assert refinement[0][1] == pytest.approx(outcome_template["mean"], abs=1e-9)
+    assert all(b[1] <= a[1] + 1e-12 for a, b in itertools.pairwise(refinement))
     for method in CONTEXTUAL_METHODS:  # checkpoints from 0 to the budget; the mean at 0 is theta_0
         rows = results["contextual"][method]
         assert [row[0] for row in rows] == [0, 51, 102]
         assert rows[0][1] == pytest.approx(results["no_learning"]["mean"])
+        settings = results["contextual_settings"][method]  # chosen on the validation targets, counted
+        assert settings["chosen"] in settings["candidates"] and len(settings["candidates"]) == len(
+            CANDIDATES[method]
+        )
+        assert settings["rollouts"] == 102 * len(CANDIDATES[method])
+        assert results["pulled_back"]["contextual"][method]["proposals"] >= 0
     assert set(results["variants"]) == set(VARIANTS)
     assert results["field"] == field_series(results)
     assert set(results["claims"]) == set(claims(results)) and len(results["claims"]) == 5
     assert set(results["goals"]) == set(goals(results)) and len(results["goals"]) == 3
-    assert all(
-        isinstance(c["holds"], bool) for c in (*results["claims"].values(), *results["goals"].values())
-    )
-    assert stdout.count("\t") >= 8
+    assert results["acceptance"] == acceptance(results) and len(results["acceptance"]) == 4
+    judged = (*results["claims"].values(), *results["goals"].values(), *results["acceptance"].values())
+    assert all(isinstance(c["holds"], bool) for c in judged)
+    assert stdout.count("\t") == 12 and "acceptance: outcome_template: means={1: " in stdout
     (training,) = results["training"]  # one seed
     assert training["seed"] == 0 and training["trained_distance"] > 0
-    assert set(training["kernels"]) == set(ks) and training["kernels"]["4"]["leave_one_out_distances"]
+    assert set(training["kernels"]) == set(ks) and training["kernels"]["4"]["validation_distances"]
     for name in ("fig5_top.png", "fig5_bottom.png", "fig_field.png"):
         with Image.open(out / name) as image:
             assert image.format == "PNG" and image.size[0] > 500
@@ -114,6 +136,8 @@ def test_a_summary_counts_failed_throws_beside_the_mean():
     s = summary([0.5, 1.5, 2.0, FAILED_DISTANCE, 1000.0])
     assert s["failed"] == 2 and s["median"] == 2.0 and s["count"] == 5
     assert s["mean"] == pytest.approx((0.5 + 1.5 + 2.0 + FAILED_DISTANCE + 1000.0) / 5)
+    assert s["non_failed_mean"] == pytest.approx(4.0 / 3)
+    assert summary([FAILED_DISTANCE])["non_failed_mean"] is None
 
 
 def s(mean, rollouts=None):
@@ -143,7 +167,11 @@ def hand_made_results() -> dict:
             "creps": [[0, 4.0], [400, 3.5], [1000, 2.0]],
             "contextual_cmaes": [[0, 4.0], [900, 3.0]],
         },
-        "rollouts": {k: {"training": 200.0 * int(k), "kernel_choice": 12.0 * int(k)} for k in ks},
+        "outcome_refinement": [[r, 1.0 / (r + 1), 0.1, 0.5 / (r + 1), 0] for r in range(4)],
+        "rollouts": {
+            k: {"training": 200.0 * int(k), "kernel_choice": 12.0 * int(k), "jacobians": 33.0 * int(k)}
+            for k in ks
+        },
     }
 
 
@@ -192,5 +220,46 @@ def test_the_field_counts_training_kernel_choice_and_the_new_tasks_rollouts():
     assert field["curve_nearest_start"][1][0] == 800 + 1
     assert field["creps"][2][:2] == [1000.0, 2.0]
     assert field["variant_bootstrapped"][0][:2] == [190.0, 3.0]
+    assert field["zero_shot_outcome_template"][2][:2] == [800.0, 2.3]  # training only: its rollouts kept
+    assert field["outcome_refinement"][3][:2] == [800.0 + 132.0 + 3, 0.25]  # and the Jacobians, 3 throws
     assert rollouts_to_reach(field["curve_uncertainty"], 1.75) == 849
     assert rollouts_to_reach(field["creps"], 1.0) is None
+
+
+def acceptance_results() -> dict:
+    """Results in which issue 39's acceptance holds, by construction."""
+    ks = ("1", "2", "4", "6", "10", "14", "20")
+    ours = dict(zip(ks, (2.0, 1.0, 0.9, 0.8, 0.5, 0.45, 0.3), strict=True))
+    return {
+        "zero_shot": {
+            "outcome_template": {k: {**s(v), "median": v / 2} for k, v in ours.items()},
+            "template": {k: s(v) for k, v in zip(ks, (3.0, 2.0, 1.5, 1.5, 1.2, 1.1, 1.0), strict=True)},
+            "nearest_neighbour": {k: s(2.0 * v) for k, v in ours.items()},
+        },
+        "contextual": {"creps": [[0, 3.0, 0.1, 3.0, 0], [1200, 1.1, 0.1, 0.6, 2], [3600, 0.9, 0.1, 0.45, 3]]},
+        "outcome_refinement": [[r, 0.5 / (r + 1), 0.1, 0.2 / (r + 1), 0] for r in range(5)],
+    }
+
+
+def test_issue_39s_acceptance_follows_the_numbers():
+    results = acceptance_results()
+    found = acceptance(results)
+    assert all(item["holds"] for item in found.values()), found
+    assert found["outcome_refinement"]["median_after_3"] == pytest.approx(0.05)
+    # A mean that rises by more than 3 cm, a failed throw, or a K above its limit each fails the item.
+    for k, change in (("6", {"mean": 0.94}), ("4", {"failed": 1}), ("14", {"mean": 0.61})):
+        broken = acceptance_results()
+        broken["zero_shot"]["outcome_template"][k].update(change)
+        assert not acceptance(broken)["outcome_template"]["holds"], (k, change)
+    broken = acceptance_results()
+    broken["zero_shot"]["template"]["14"]["mean"] = 1.25  # rises after K = 4
+    assert not acceptance(broken)["paper_template"]["holds"]
+    broken = acceptance_results()
+    broken["contextual"]["creps"][1][4] = 3  # three failed throws at 1,200
+    assert not acceptance(broken)["creps"]["holds"]
+    # A run without K = 10 or the 1,200-rollout checkpoint (the quick one) fails those items, saying so.
+    del results["zero_shot"]["outcome_template"]["10"]
+    results["contextual"]["creps"] = results["contextual"]["creps"][:1]
+    found = acceptance(results)
+    assert not found["outcome_template"]["holds"] and found["outcome_template"]["median_k10"] is None
+    assert not found["creps"]["holds"] and found["creps"]["mean_at_1200"] is None

@@ -54,16 +54,23 @@ def _experiment_throwing(args: argparse.Namespace) -> int:
         ExperimentConfig.quick(args.seeds or 1) if args.quick else ExperimentConfig(seeds=args.seeds or 3)
     )
     results = Experiment(config, Path(args.out), backend=args.backend).run()
-    for kind in ("claims", "goals"):
+    for kind in ("claims", "goals", "acceptance"):
         for name, facts in results[kind].items():
             numbers = ", ".join(
-                f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"
-                for k, v in facts.items()
-                if k not in ("holds", "comparisons")
+                f"{k}={_rounded(v)}" for k, v in facts.items() if k not in ("holds", "comparisons")
             )
-            print(f"{'holds' if facts['holds'] else 'FAILS'}\t{name}: {numbers}")
+            print(f"{'holds' if facts['holds'] else 'FAILS'}\t{kind}: {name}: {numbers}")
     print(f"wrote {Path(args.out) / 'results.json'}, fig5_top.png, fig5_bottom.png, fig_field.png")
     return 0
+
+
+def _rounded(value):
+    """Numbers to three significant digits, also inside the per-K tables of the acceptance."""
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k}: {_rounded(v)}" for k, v in value.items()) + "}"
+    return str(value)
 
 
 def register(commands) -> None:
@@ -91,7 +98,7 @@ def register(commands) -> None:
     throwing.add_argument(
         "--quick",
         action="store_true",
-        help="a small run (3 x 3 grid, K up to 4; 37 s on 2 cores, 2026-11-27)",
+        help="a small run (3 x 3 grid, K up to 4; 40 s on 2 cores, 2026-11-27)",
     )
     throwing.add_argument("--seeds", type=COUNT, help="independent repetitions (default 3; 1 with --quick)")
     throwing.add_argument(
