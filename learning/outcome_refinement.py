@@ -45,9 +45,12 @@ def refine_in_outcome_space(
 ) -> np.ndarray:
     """(N, trials + 1) distances to target of the best outcome so far (column 0: the starts'), for starts
     (N, n) with their outcomes (N, m) and Jacobians (N, m, c) in theta's ``coordinates`` (c,)."""
-    best = np.array(starts, dtype=float)
-    outcomes = np.array(start_outcomes, dtype=float)
-    jacobians = np.array(jacobians, dtype=float)
+    # Fresh C-ordered copies: numpy's sums follow the memory layout, and a strided Jacobian (as computed) and
+    # a contiguous one (as read back by a resumed run) would differ in the last bits.
+    best = np.array(starts, dtype=float, order="C")
+    outcomes = np.array(start_outcomes, dtype=float, order="C")
+    jacobians = np.array(jacobians, dtype=float, order="C")
+    targets = np.array(targets, dtype=float, order="C")
     if not (len(best) == len(outcomes) == len(jacobians) == len(targets)):
         raise InputError("starts, their outcomes, Jacobians and targets must have one row per target")
     if jacobians.shape[1:] != (targets.shape[1], len(coordinates)):

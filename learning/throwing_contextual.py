@@ -99,7 +99,7 @@ class ContextualSearches:
             bench, budget = self.bench, self.bench.config.contextual_rollouts
             scores = []
             for i, candidate in enumerate(CANDIDATES[method]):
-                _, distances = self._search(
+                _, distances, _ = self._search(
                     f"{method} setting {i + 1}/{len(CANDIDATES[method])}",
                     method,
                     candidate,
@@ -107,7 +107,7 @@ class ContextualSearches:
                     bench.validation,
                     SELECTION_SEED + i,
                 )
-                scores.append(distances[1:].mean())
+                scores.append(distances.mean(axis=1)[1:].mean())  # the checkpoints after the start
             return {
                 "scores": np.array(scores),
                 "chosen": np.array(int(np.argmin(scores))),
@@ -132,15 +132,14 @@ class ContextualSearches:
                 bench.config.contextual_rollouts,
                 bench.grid,
                 seed,
-                counted=True,
             )
             return {"rollouts": rollouts, "distances": distances, **moved}
 
         return self.folder.stage(f"seed{seed}_{method}", compute)
 
-    def _search(self, description, method, settings, budget, targets, seed, counted=False):
-        """One search: its checkpoints' rollout counts and the mean policy's distances at ``targets`` there
-        (and, if ``counted``, what the guard moved)."""
+    def _search(self, description, method, settings, budget, targets, seed):
+        """One search: its checkpoints' rollout counts, the mean policy's distances at ``targets`` there
+        (checkpoints, targets) and what the guard moved."""
         bench, bounds = self.bench, self.bench.task.bounds
         box = ContextBox(np.array(bounds.low), np.array(bounds.high))
         optimizer = KINDS[method](
@@ -170,11 +169,8 @@ class ContextualSearches:
                 on_checkpoint=on_checkpoint,
                 progress=bar.update,
             )
-        rows = np.array(rows)
-        if not counted:
-            return np.array(checkpoints), rows.mean(axis=1)
         moved = {
             "proposals_pulled_back": np.array(policy.proposals_pulled_back),
             "means_pulled_back": np.array(means_pulled_back),
         }
-        return np.array(checkpoints), rows, moved
+        return np.array(checkpoints), np.array(rows), moved

@@ -89,7 +89,7 @@ class TrainingSets:
             jacobians = (plus - minus) / np.maximum(width, step)[..., None]  # (K, c, 2)
             return {
                 "landings": centre,
-                "jacobians": np.nan_to_num(jacobians.transpose(0, 2, 1)),
+                "jacobians": np.ascontiguousarray(np.nan_to_num(jacobians.transpose(0, 2, 1))),
                 "rollouts": np.full(len(thetas), 1 + 2 * len(entries)),
             }
 

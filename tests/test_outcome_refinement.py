@@ -78,3 +78,25 @@ def test_bad_input_is_refused_by_name():
         refine_in_outcome_space(no_guard, no_guard, starts[:3], targets, wrong, targets, COORDINATES, 2)
     with pytest.raises(InputError, match="at least one trial"):
         refine_in_outcome_space(no_guard, no_guard, starts, targets, wrong, targets, COORDINATES, 0)
+
+
+def test_the_result_does_not_depend_on_the_inputs_memory_layout():
+    """A resumed experiment reads its Jacobians back contiguous where the first run computed them strided:
+    the refinement must give the same bits either way."""
+    starts, targets, wrong = problem(seed=2)
+    strided = np.ascontiguousarray(wrong.transpose(0, 2, 1)).transpose(0, 2, 1)
+    assert not strided.flags.c_contiguous
+
+    def run(jacobians):
+        return refine_in_outcome_space(
+            lambda thetas, _: outcome(thetas),
+            no_guard,
+            starts,
+            outcome(starts),
+            jacobians,
+            targets,
+            COORDINATES,
+            3,
+        )
+
+    np.testing.assert_array_equal(run(strided), run(np.ascontiguousarray(wrong)))
