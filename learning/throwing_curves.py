@@ -44,14 +44,7 @@ class LearningCurves:
                 starts = [WarmStart(mean, spread) for mean in means]
             else:
                 template = self.templates.template(seed, k).with_exploration(method)
-                training = self.training.paper(seed)
-                means, _ = bench.guarded_by_training(
-                    template.predict(bench.grid)[0], training["taus"][:k], training["thetas"][:k], bench.grid
-                )
-                starts = [
-                    WarmStart(mean, template.distribution(tau)[1])
-                    for mean, tau in zip(means, bench.grid, strict=True)
-                ]
+                starts = self.templates.starts(template, seed, k, bench.grid)
             offset = 1000 + CURVE_METHODS.index(method)
             return {
                 "distances": bench.curves(f"seed {seed}: {method}", starts, bench.grid, seed * 7919 + offset)

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from besman.learning.policy_search import WarmStart
 from besman.learning.throwing_bench import ThrowingBench, distances_of
 from besman.learning.throwing_config import ZERO_SHOT_METHODS
 from besman.learning.throwing_output import RunFolder
@@ -46,7 +45,8 @@ class GridEvaluation:
             targets = np.concatenate([grid, bench.validation])
             training = self.training.paper(seed)
             taus, thetas = training["taus"][:k], training["thetas"][:k]
-            predictions = self.zero_shot_predictions(seed, k, targets)
+            template = self.templates.template(seed, k)
+            predictions = self._zero_shot_predictions(seed, k, template, targets)
             arrays, guarded = {}, {}
             for method in ZERO_SHOT_METHODS:
                 guarded[method], arrays[f"pulled_back_{method}"] = bench.guarded_by_training(
@@ -61,12 +61,7 @@ class GridEvaluation:
                     row[: len(grid)],
                     row[len(grid) :],
                 )
-            template = self.templates.template(seed, k)
-            spreads = [template.distribution(tau)[1] for tau in grid]
-            starts = [
-                WarmStart(mean, spread)
-                for mean, spread in zip(guarded["template"][: len(grid)], spreads, strict=True)
-            ]
+            starts = self.templates.starts(template, seed, k, grid)
             budget = bench.config.refine_rollouts
             results = bench.search(f"seed {seed}: K={k} refinement", starts, grid, budget, seed + 7 * k)
             refined = [r.curve()[min(budget, r.rollouts), 2] for r in results]
@@ -74,14 +69,16 @@ class GridEvaluation:
 
         return self.folder.stage(f"seed{seed}_k{k}", compute)
 
-    def zero_shot_predictions(self, seed: int, k: int, targets: np.ndarray) -> dict[str, np.ndarray]:
-        """Every zero-shot method's thetas (before the guard) for ``targets`` from the first k training tasks
-        (besman's outcome template: from every valid rollout of their searches)."""
+    def _zero_shot_predictions(
+        self, seed: int, k: int, template: SkillTemplate, targets: np.ndarray
+    ) -> dict[str, np.ndarray]:
+        """Every zero-shot method's thetas (before the guard) for ``targets`` from the first k training tasks,
+        ``template`` the paper's of them (besman's outcome template: from every valid rollout of their
+        searches)."""
         bench = self.bench
         training = self.training.paper(seed)
         taus, thetas = training["taus"][:k], training["thetas"][:k]
         inputs, queries = bench.task.bounds.normalise(taus), bench.task.bounds.normalise(targets)
-        template = self.templates.template(seed, k)
         per_dimension = SkillTemplate(
             "throw", template.prototype, taus, thetas, bench.task.bounds, model="per_dimension", seed=seed
         )

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from besman.learning.policy_search import WarmStart
 from besman.learning.template_selection import choose_kernel
 from besman.learning.throwing_bench import ThrowingBench
 from besman.learning.throwing_output import RunFolder
@@ -85,6 +86,17 @@ class Templates:
             }
 
         return self.folder.stage(f"seed{seed}_{source}_k{k}_kernel", compute)
+
+    def starts(self, template: SkillTemplate, seed: int, k: int, targets: np.ndarray) -> list[WarmStart]:
+        """CMA-ES starts at ``targets`` from ``template`` (of the seed's first k training tasks): its mean,
+        guarded toward the nearest training theta, and its exploration."""
+        training = self.training.paper(seed)
+        means, _ = self.bench.guarded_by_training(
+            template.predict(targets)[0], training["taus"][:k], training["thetas"][:k], targets
+        )
+        return [
+            WarmStart(mean, template.distribution(tau)[1]) for mean, tau in zip(means, targets, strict=True)
+        ]
 
     def template(self, seed: int, k: int, source: str = "training") -> SkillTemplate:
         data = self.training.of(seed, source)

@@ -69,13 +69,13 @@ class TrainingSets:
         replaced by the centre (a one-sided difference). 1 + 2 x 16 rollouts per training task."""
 
         def compute():
-            bench, thetas = self.bench, self.paper(seed)["thetas"]
+            bench, training = self.bench, self.paper(seed)
+            thetas, taus = training["thetas"], training["taus"]
             step, entries = bench.config.jacobian_step, bench.goal_entries
             probes = np.repeat(thetas[:, None, None], 2, axis=1).repeat(len(entries), axis=2)  # (K, 2, c, n)
             for c, entry in enumerate(entries):
                 probes[:, 0, c, entry] += step
                 probes[:, 1, c, entry] -= step
-            taus = self.paper(seed)["taus"]
             everything = np.concatenate([thetas, probes.reshape(-1, thetas.shape[1])])
             targets = np.concatenate([taus, np.repeat(taus, 2 * len(entries), axis=0)])
             with bench.bar(f"seed {seed}: Jacobians", len(everything)) as bar:
