@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from besman.skills.errors import InputError
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 # "template" is the paper's (Metzen et al. 2014), "outcome_template" besman's own.
 ZERO_SHOT_METHODS = (
     "template",
@@ -40,6 +40,7 @@ class ExperimentConfig:
     outcome_throws: int = 4
     contextual_rollouts: int = 3600
     contextual_checkpoint: int = 400
+    selection_searches: int = 3  # per contextual candidate (throwing_contextual)
     method: str = "cmaes"
     variant: str = "paper"
 
@@ -57,6 +58,8 @@ class ExperimentConfig:
             raise InputError("rollout budgets must be at least 1")
         if not 1 <= self.contextual_checkpoint <= self.contextual_rollouts:
             raise InputError("contextual_checkpoint must be between 1 and contextual_rollouts")
+        if self.selection_searches < 1:
+            raise InputError(f"selection_searches must be at least 1, got {self.selection_searches}")
         if not self.jacobian_step > 0:
             raise InputError(f"jacobian_step must be > 0, got {self.jacobian_step!r}")
 
@@ -77,4 +80,5 @@ class ExperimentConfig:
             outcome_throws=2,
             contextual_rollouts=102,
             contextual_checkpoint=51,
+            selection_searches=2,
         )

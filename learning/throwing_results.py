@@ -117,6 +117,7 @@ def collect_results(experiment: Experiment) -> dict:
             method: {
                 "candidates": [asdict(candidate) for candidate in CONTEXTUAL_CANDIDATES[method]],
                 "validation_areas": stage["scores"].tolist(),
+                "validation_areas_per_search": stage["areas"].tolist(),
                 "chosen": asdict(CONTEXTUAL_CANDIDATES[method][int(stage["chosen"])]),
                 "rollouts": int(stage["rollouts"]),
             }

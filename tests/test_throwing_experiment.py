@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from PIL import Image
 
@@ -46,7 +47,7 @@ def test_the_quick_experiment_writes_results_and_figures_and_resumes(quick_run, 
     out, stdout = quick_run
     results = json.loads((out / "results.json").read_text())
     config = results["config"]
-    assert results["schema_version"] == 3 and config["grid"] == 3
+    assert results["schema_version"] == 4 and config["grid"] == 3
     ks = [str(k) for k in config["ks"]]
     assert set(results["zero_shot"]) == set(results["validation"]) == set(ZERO_SHOT_METHODS)
     for by_k in (*results["zero_shot"].values(), results["template_refined"]):
@@ -89,7 +90,13 @@ def test_the_quick_experiment_writes_results_and_figures_and_resumes(quick_run, 
         assert settings["chosen"] in settings["candidates"] and len(settings["candidates"]) == len(
             CANDIDATES[method]
         )
-        assert settings["rollouts"] == 102 * len(CANDIDATES[method])
+        # Two searches per candidate on their own contexts (a population larger than the quick budget never
+        # updates, so its searches agree), averaged.
+        areas = np.array(settings["validation_areas_per_search"])
+        assert areas.shape == (len(CANDIDATES[method]), 2) and (areas[:, 0] != areas[:, 1]).any()
+        assert settings["validation_areas"] == pytest.approx(areas.mean(axis=1).tolist())
+        assert settings["candidates"].index(settings["chosen"]) == np.argmin(settings["validation_areas"])
+        assert settings["rollouts"] == 102 * 2 * len(CANDIDATES[method])
         assert results["pulled_back"]["contextual"][method]["proposals"] >= 0
     assert set(results["variants"]) == set(VARIANTS)
     assert results["field"] == field_series(results)
