@@ -15,14 +15,14 @@ from collections.abc import Iterator, Sequence
 
 from besman import stopped
 from besman._version import __version__
-from besman.commands import examples, learning, pool, recordings, robots, tasks, trees, viewing
+from besman.commands import datasets, examples, learning, pool, recordings, robots, tasks, trees, viewing
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="besman", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"besman {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in (robots, trees, viewing, tasks, recordings, learning, pool, examples):
+    for module in (robots, trees, viewing, tasks, recordings, datasets, learning, pool, examples):
         module.register(commands)
     return parser
 

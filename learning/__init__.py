@@ -21,7 +21,9 @@ corrections),
 (``besman learn``: recordings to a template pool of a task's :mod:`building blocks <besman.learning.blocks>`;
 its stages in :mod:`besman.learning.pipeline_labels` and :mod:`besman.learning.pipeline_refinement`, its
 record in :mod:`besman.learning.pipeline_record`, figures by :mod:`besman.learning.pipeline_plots`),
-:mod:`besman.learning.online` (refining a template's instance in a copy of the world) and
+:mod:`besman.learning.online` (refining a template's instance in a copy of the world),
+:mod:`besman.learning.dataset_format`, :mod:`~besman.learning.dataset_writer` and
+:mod:`~besman.learning.dataset_reader` (LeRobot v3.0 datasets, written an episode at a time and read back) and
 :mod:`besman.learning.throwing_experiment` (the paper's skill-template experiment, besman's outcome template
 and the field, judged by
 :mod:`besman.learning.throwing_claims`, drawn by :mod:`besman.learning.throwing_plots`;

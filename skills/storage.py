@@ -11,6 +11,8 @@ messages that name the file and the field; every error is a :class:`~besman.skil
 
 from __future__ import annotations
 
+import ctypes
+import errno
 import hashlib
 import io
 import json
@@ -87,6 +89,24 @@ def put_in_place(temporary: Path, path: Path) -> None:
     """Renames a finished temporary to ``path``, with the permissions an ordinary new file would have."""
     os.chmod(temporary, 0o666 & ~_UMASK)
     os.replace(temporary, path)
+
+
+def exchange_folders(new: Path, path: Path) -> None:
+    """Puts the folder ``new`` at ``path`` in one step: renamed there if nothing is, else exchanged with the
+    folder there (Linux's ``renameat2(RENAME_EXCHANGE)``; ``new`` then holds the old one). A reader, or a
+    writer killed at any moment, sees the old folder or the new one, never a mix."""
+    if not path.exists():
+        os.rename(new, path)
+        return
+    libc = ctypes.CDLL(None, use_errno=True)
+    renameat2 = getattr(libc, "renameat2", None)
+    at_cwd, rename_exchange = -100, 2
+    if renameat2 is None or renameat2(at_cwd, os.fsencode(new), at_cwd, os.fsencode(path), rename_exchange):
+        code = ctypes.get_errno() if renameat2 is not None else errno.ENOSYS
+        raise WriteError(
+            f"{path}: cannot replace it in one step ({os.strerror(code)}); its file system or system lacks "
+            "renameat2's exchange (Linux 3.15 and ext4, XFS, Btrfs or tmpfs have it)"
+        )
 
 
 def is_temporary(path: Path, of: str | None = None) -> bool:

@@ -7,7 +7,8 @@ evaluate for policy search; and the building blocks it learns. :data:`TASKS` hol
 package - a module that defines ``TASKS`` (a tuple of tasks) is registered as it is added, so adding a task
 is adding its module - and those of installed distributions that name a module with ``TASKS`` under the
 entry point group ``besman.tasks`` (the documentation's "Add a task" page). A demo is a task run with its
-default tree and a seed (:mod:`besman.tasks.running`).
+default tree and a seed (:mod:`besman.tasks.running`); a run recorded as a dataset's episode is
+:mod:`besman.tasks.recording`'s.
 
 ``besman tasks``, ``besman demo``, ``besman run``, ``besman learn`` and the experiments find tasks here.
 """
@@ -22,7 +23,8 @@ from besman.skills.errors import UnknownNameError
 from besman.tasks.base import Task
 
 DEFAULT = "pick-place"  # the task of ``besman demo`` without a name, and of ``besman learn``
-FRAMEWORK = ("base", "robot_check", "running", "session")  # modules of this package that are not tasks
+# Modules of this package that are not tasks.
+FRAMEWORK = ("base", "recording", "robot_check", "running", "session")
 
 
 ENTRY_POINTS = "besman.tasks"  # the group under which other distributions name their task modules

@@ -7,6 +7,7 @@ import json
 import math
 from collections.abc import Sequence
 
+from besman.commands.datasets import check_dataset, dataset_options
 from besman.commands.options import SEED
 from besman.commands.viewing import check_view, run_task, serve, view_options
 from besman.skills.errors import InputError
@@ -159,6 +160,7 @@ def _run(args: argparse.Namespace) -> int:
     from besman.trees.runner import LOG_KIND
 
     check_view(args)
+    check_dataset(args)
     if args.log:
         check_output(args.log, option="--log", suffixes=(".jsonl",), inputs=(args.file,), kind=LOG_KIND)
     values = _parse_sets(args.set)
@@ -176,6 +178,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _demo(args: argparse.Namespace) -> int:
     check_view(args)
+    check_dataset(args)
     from besman.tasks import DEFAULT, TASKS, task
 
     if args.list:
@@ -275,6 +278,7 @@ def register(commands) -> None:
     )
     _perturb_option(run)
     run.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
+    dataset_options(run)
     run.add_argument("--json", action="store_true", help="print the summary as JSON")
     run.add_argument(
         "--pool", default=None, help="a skill template pool that replaces the pools the tree names"
@@ -295,6 +299,7 @@ def register(commands) -> None:
     _set_option(demo)
     _perturb_option(demo)
     demo.add_argument("--log", default=None, help="write every tick to this JSON-lines file")
+    dataset_options(demo)
     demo.add_argument("--json", action="store_true", help="print the summary as JSON")
     view_options(demo)
     demo.set_defaults(handler=_demo)

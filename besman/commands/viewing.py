@@ -59,8 +59,9 @@ def view_options(command: argparse.ArgumentParser) -> None:
 
 def run_task(args: argparse.Namespace, *, task=None, tree=None, values: dict, log, demo=None) -> tuple:
     """Runs ``tree`` (default: the task's) on ``task`` (default: the one the tree file names) as the
-    command line asks (``--robot``, ``--seed``, ``--pool``, ``--allow-module``); with --view inside a browser
-    session that stays open after the run (returned in the list, for :func:`serve`)."""
+    command line asks (``--robot``, ``--seed``, ``--pool``, ``--allow-module``); with --dataset appended to
+    it as an episode; with --view inside a browser session that stays open after the run (returned in the
+    list, for :func:`serve`)."""
     options = {
         "robot": args.robot,
         "seed": getattr(args, "seed", None),
@@ -69,6 +70,14 @@ def run_task(args: argparse.Namespace, *, task=None, tree=None, values: dict, lo
         "demo": demo,
         "perturb": getattr(args, "perturb", None),
     }
+    if getattr(args, "dataset", None):  # --view refused before (check_dataset)
+        from besman.tasks.recording import record_run
+
+        summary, index = record_run(
+            task, tree, dataset=args.dataset, video=args.video, values=values, log=log, **options
+        )
+        print(f"{args.dataset}: the run is episode {index}", file=sys.stderr)
+        return summary, []
     if not args.view:
         from besman.tasks.running import run
 

@@ -1,0 +1,178 @@
+"""Task runs recorded as LeRobot v3.0 episodes (:mod:`besman.learning.dataset_writer`): ``besman run`` and
+``besman demo`` with ``--dataset DIR``, and ``besman record`` (a task over N seeds).
+
+One frame per tick of the tree (the runner's rate, 50 Hz: where the tree decides; the executor's 500 Hz
+commands between two frames are Ruckig's interpolation toward the next), every driven arm in turn (the
+executor's, then the ones in lockstep with it):
+
+- ``observation.state``: the arms' joint positions and their fingers' joint positions, then the same joints'
+  velocities, as measured (``<joint>.pos``, ``<joint>.vel``; rad, m, rad/s, m/s);
+- ``observation.environment_state``: tau, the task's values (constant in an episode; ``besman tasks show``);
+- ``action``: what the arms were commanded to reach by the next frame - each arm's joint positions and,
+  for an arm with a gripper, its opening (m per finger; ``<arm>.gripper``); the last frame repeats;
+- ``observation.images.<camera>`` with ``--video``: a free camera aimed at the scene's centre, rendered
+  offscreen (``MUJOCO_GL=egl``) at 320 x 240.
+
+Each episode's text is the task's title; its row in the episodes table also holds ``besman/task``,
+``besman/robot``, ``besman/tree``, ``besman/seed`` (-1: none), ``besman/tau`` and ``besman/success``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from besman.learning.dataset_writer import DatasetSpec, DatasetWriter, Episode
+from besman.skills.errors import InputError
+from besman.tasks import task as find_task
+from besman.tasks.running import observers, prepare
+from besman.trees.summary import RunSummary
+
+CAMERA = "observation.images.scene"
+CAMERA_SIZE = (240, 320)  # height, width
+FACTS = ("besman/task", "besman/robot", "besman/tree", "besman/seed", "besman/tau", "besman/success")
+
+
+class RunRecorder:
+    """Collects one run's frames (its runner's observer) and makes them an :class:`Episode`."""
+
+    def __init__(self, runner, task, *, video: bool = False) -> None:
+        self.runner, self.task = runner, task
+        executor = runner.executor
+        self.arms = [executor, *executor.companions.values()]
+        world = executor.world
+        fingers = [() if a.hand is None else a.hand.fingers.joints for a in self.arms]
+        joints = [
+            name for arm, own in zip(self.arms, fingers, strict=True) for name in (*arm.arm.joints, *own)
+        ]
+        model = world.model
+        self._qpos = np.array([model.jnt_qposadr[model.joint(name).id] for name in joints])
+        self._qvel = np.array([model.jnt_dofadr[model.joint(name).id] for name in joints])
+        if float(runner.rate) != int(runner.rate):
+            raise InputError(f"a dataset's fps is whole: the runner's rate {runner.rate} Hz is not")
+        action_names = [
+            name
+            for arm in self.arms
+            for name in (
+                *(f"{joint}.pos" for joint in arm.arm.joints),
+                *((f"{arm.name}.gripper",) if arm.gripper_opening is not None else ()),
+            )
+        ]
+        features = {
+            "observation.state": {
+                "dtype": "float32",
+                "shape": [2 * len(joints)],
+                "names": [f"{j}.pos" for j in joints] + [f"{j}.vel" for j in joints],
+            },
+            "observation.environment_state": {
+                "dtype": "float32",
+                "shape": [len(task.names)],
+                "names": list(task.names),
+            },
+            "action": {"dtype": "float32", "shape": [len(action_names)], "names": action_names},
+        }
+        self.renderer = None
+        if video:
+            import mujoco
+
+            height, width = CAMERA_SIZE
+            features[CAMERA] = {
+                "dtype": "video",
+                "shape": [height, width, 3],
+                "names": ["height", "width", "channels"],
+            }
+            # Without multisampling, shadows and reflections: 0.47 -> 0.04 s a frame in software (no GPU).
+            samples, model.vis.quality.offsamples = model.vis.quality.offsamples, 0
+            try:
+                self.renderer = mujoco.Renderer(model, height, width)
+            finally:
+                model.vis.quality.offsamples = samples
+            self.camera = mujoco.MjvCamera()
+            mujoco.mjv_defaultFreeCamera(model, self.camera)
+        robot = runner.run_info.get("robot")
+        self.spec = DatasetSpec(fps=int(runner.rate), features=features, robot_type=robot)
+        self.states, self.commands, self.images = [], [], []
+        runner.observe = observers(runner.observe, self.observe)
+
+    def observe(self, runner, _record: dict) -> None:
+        data = self.runner.executor.world.data
+        self.states.append(np.concatenate([data.qpos[self._qpos], data.qvel[self._qvel]]))
+        self.commands.append(
+            np.concatenate(
+                [
+                    np.r_[arm.position, [] if arm.gripper_opening is None else [arm.gripper_opening]]
+                    for arm in self.arms
+                ]
+            )
+        )
+        if self.renderer is not None:
+            import mujoco
+
+            self.renderer.update_scene(data, self.camera)
+            for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
+                self.renderer.scene.flags[flag] = False
+            self.images.append(self.renderer.render().copy())
+
+    def episode(self, summary: RunSummary) -> Episode:
+        """The run's episode: its frames, and its facts from the run's ``summary``."""
+        run_info, count = self.runner.run_info, len(self.states)
+        tau = self.task.join({name: run_info["values"][name] for name in (v.name for v in self.task.values)})
+        commands = np.array(self.commands)
+        actions = np.concatenate([commands[1:], commands[-1:]])  # what frame t is told to reach by t + 1
+        frames = {
+            "observation.state": np.array(self.states),
+            "observation.environment_state": np.tile(tau, (count, 1)),
+            "action": actions,
+        }
+        tree = run_info["tree"]
+        facts = {
+            "besman/task": self.task.name,
+            "besman/robot": str(run_info["robot"]),
+            "besman/tree": tree if isinstance(tree, str) else "built in code",
+            "besman/seed": -1 if run_info["seed"] is None else int(run_info["seed"]),
+            "besman/tau": tau.tolist(),
+            "besman/success": bool(summary.success),
+        }
+        videos = {CAMERA: np.array(self.images)} if self.renderer is not None else {}
+        return Episode(self.task.title, frames, videos, facts)
+
+    def close(self) -> None:
+        if self.renderer is not None:
+            self.renderer.close()
+
+
+def record_run(
+    task, tree=None, *, dataset: str | Path, video: bool = False, log=None, **options
+) -> tuple[RunSummary, int]:
+    """Runs ``tree`` on ``task`` (as :func:`~besman.tasks.running.run`, ``options`` alike) and appends it to
+    the dataset at ``dataset`` (checked before the run: a dataset recorded with other features is
+    refused); the summary and the episode's index."""
+    prepared = prepare(task, tree, **options)
+    recorder = RunRecorder(prepared.runner, find_task(prepared.runner.run_info["task"]), video=video)
+    try:
+        with DatasetWriter(dataset, recorder.spec) as writer:
+            summary = prepared.judge(prepared.runner.run(log=log))
+            return summary, writer.append(recorder.episode(summary))
+    finally:
+        recorder.close()
+
+
+def recorded_seeds(dataset: str | Path, task: str, robot: str) -> set[int]:
+    """The seeds of the dataset's episodes of ``task`` on ``robot`` (none if there is no dataset yet); a
+    dataset of another task or robot is refused."""
+    from besman.learning.dataset_reader import read_dataset
+
+    if not (Path(dataset) / "meta" / "info.json").exists():
+        return set()
+    found = read_dataset(dataset)
+    seeds = set()
+    for index in range(len(found.episodes)):
+        facts = found.facts(index)
+        if (facts.get("besman/task"), facts.get("besman/robot")) != (task, robot):
+            raise InputError(
+                f"--dataset {dataset}: episode {index} is of task {facts.get('besman/task')!r} on "
+                f"{facts.get('besman/robot')!r}, not {task} on {robot}; record into another dataset"
+            )
+        seeds.add(facts["besman/seed"])
+    return seeds
