@@ -12,6 +12,8 @@ carries its own logic:
   :class:`FollowPrimitive` makes that reference from a movement primitive when it starts, in the current
   commanded state (:mod:`besman.sim.references`).
 - :class:`MoveTo` - a time-optimal jerk-limited move to a joint configuration (Ruckig's own trajectory).
+- :class:`TrackTarget` - track a joint configuration and a gripper opening that change from outside (a
+  Gymnasium environment's actions), never ending by itself.
 - :class:`GripperMotion` - open or close the gripper while the arm holds still; closing can require a grasp.
 - :class:`Stop` - brake to rest within the limits (what pre-emption does).
 
@@ -313,6 +315,36 @@ class MoveTo(Motion):
         blocked = self.blocked_at(executor, chunk)
         self.settle(executor, chunk, self.target, chunk.at_rest, until=blocked)
         if self.status is MotionStatus.RUNNING and blocked is not None:
+            self.fail_blocked(executor, chunk, blocked)
+
+
+@dataclass
+class TrackTarget(Motion):
+    """Track ``target`` (joint positions) and the gripper's ``opening`` (m per finger; None: leave it) with
+    the Ruckig streams, jerk-limited, for as long as it runs: it never ends by itself (a Gymnasium step
+    starts the next one over it), and fails when the robot cannot follow (blocked)."""
+
+    target: np.ndarray = None  # type: ignore[assignment]
+    opening: float | None = None
+    _gripper: tuple | None = field(default=None, init=False, repr=False)  # its feasible Ruckig target
+    moves_gripper: ClassVar[bool] = True
+
+    def begin(self, executor: Executor) -> None:
+        self.target = np.clip(np.asarray(self.target, dtype=float), executor.arm.lower, executor.arm.upper)
+        self.moves_gripper = executor.hand is not None  # an arm without a gripper records none
+        if self.opening is not None and executor.hand is not None:
+            gripper = executor.arm.gripper
+            goal = float(np.clip(self.opening, gripper.lower, gripper.upper))
+            self._gripper = executor.gripper_stream.feasible([goal], [0.0], [0.0])
+
+    def command(self, executor: Executor) -> ruckig.Result:
+        if self._gripper is not None:
+            executor.gripper_stream.track_feasible(*self._gripper)
+        return executor.stream.track(self.target)
+
+    def judge(self, executor: Executor, chunk: Chunk) -> None:
+        blocked = self.blocked_at(executor, chunk)
+        if blocked is not None:
             self.fail_blocked(executor, chunk, blocked)
 
 

@@ -2,14 +2,12 @@
 ``besman demo`` with ``--dataset DIR``, and ``besman record`` (a task over N seeds).
 
 One frame per tick of the tree (the runner's rate, 50 Hz: where the tree decides; the executor's 500 Hz
-commands between two frames are Ruckig's interpolation toward the next), every driven arm in turn (the
-executor's, then the ones in lockstep with it):
+commands between two frames are Ruckig's interpolation toward the next), named as
+:mod:`besman.tasks.frames` names them:
 
-- ``observation.state``: the arms' joint positions and their fingers' joint positions, then the same joints'
-  velocities, as measured (``<joint>.pos``, ``<joint>.vel``; rad, m, rad/s, m/s);
-- ``observation.environment_state``: tau, the task's values (constant in an episode; ``besman tasks show``);
-- ``action``: what the arms were commanded to reach by the next frame - each arm's joint positions and,
-  for an arm with a gripper, its opening (m per finger; ``<arm>.gripper``); the last frame repeats;
+- ``observation.state``: the arms' measured joint and finger positions, then their velocities;
+- ``observation.environment_state``: tau (constant in an episode);
+- ``action``: what the arms were commanded to reach by the next frame (the last frame repeats);
 - ``observation.images.<camera>`` with ``--video``: a free camera aimed at the scene's centre, rendered
   offscreen (``MUJOCO_GL=egl``) at 320 x 240.
 
@@ -26,12 +24,12 @@ import numpy as np
 from besman.learning.dataset_writer import DatasetSpec, DatasetWriter, Episode
 from besman.skills.errors import InputError
 from besman.tasks import task as find_task
+from besman.tasks.frames import RobotFrames, SceneCamera
 from besman.tasks.running import observers, prepare
 from besman.trees.summary import RunSummary
 
 CAMERA = "observation.images.scene"
 CAMERA_SIZE = (240, 320)  # height, width
-FACTS = ("besman/task", "besman/robot", "besman/tree", "besman/seed", "besman/tau", "besman/success")
 
 
 class RunRecorder:
@@ -39,80 +37,40 @@ class RunRecorder:
 
     def __init__(self, runner, task, *, video: bool = False) -> None:
         self.runner, self.task = runner, task
-        executor = runner.executor
-        self.arms = [executor, *executor.companions.values()]
-        world = executor.world
-        fingers = [() if a.hand is None else a.hand.fingers.joints for a in self.arms]
-        joints = [
-            name for arm, own in zip(self.arms, fingers, strict=True) for name in (*arm.arm.joints, *own)
-        ]
-        model = world.model
-        self._qpos = np.array([model.jnt_qposadr[model.joint(name).id] for name in joints])
-        self._qvel = np.array([model.jnt_dofadr[model.joint(name).id] for name in joints])
+        self.frames = frames = RobotFrames(runner.executor)
         if float(runner.rate) != int(runner.rate):
             raise InputError(f"a dataset's fps is whole: the runner's rate {runner.rate} Hz is not")
-        action_names = [
-            name
-            for arm in self.arms
-            for name in (
-                *(f"{joint}.pos" for joint in arm.arm.joints),
-                *((f"{arm.name}.gripper",) if arm.gripper_opening is not None else ()),
-            )
-        ]
         features = {
             "observation.state": {
                 "dtype": "float32",
-                "shape": [2 * len(joints)],
-                "names": [f"{j}.pos" for j in joints] + [f"{j}.vel" for j in joints],
+                "shape": [len(frames.state_names)],
+                "names": frames.state_names,
             },
             "observation.environment_state": {
                 "dtype": "float32",
                 "shape": [len(task.names)],
                 "names": list(task.names),
             },
-            "action": {"dtype": "float32", "shape": [len(action_names)], "names": action_names},
+            "action": {"dtype": "float32", "shape": [len(frames.action_names)], "names": frames.action_names},
         }
-        self.renderer = None
+        self.camera = None
         if video:
-            import mujoco
-
-            height, width = CAMERA_SIZE
             features[CAMERA] = {
                 "dtype": "video",
-                "shape": [height, width, 3],
+                "shape": [*CAMERA_SIZE, 3],
                 "names": ["height", "width", "channels"],
             }
-            # Without multisampling, shadows and reflections: 0.47 -> 0.04 s a frame in software (no GPU).
-            samples, model.vis.quality.offsamples = model.vis.quality.offsamples, 0
-            try:
-                self.renderer = mujoco.Renderer(model, height, width)
-            finally:
-                model.vis.quality.offsamples = samples
-            self.camera = mujoco.MjvCamera()
-            mujoco.mjv_defaultFreeCamera(model, self.camera)
+            self.camera = SceneCamera(runner.executor.world, CAMERA_SIZE)
         robot = runner.run_info.get("robot")
         self.spec = DatasetSpec(fps=int(runner.rate), features=features, robot_type=robot)
         self.states, self.commands, self.images = [], [], []
         runner.observe = observers(runner.observe, self.observe)
 
     def observe(self, runner, _record: dict) -> None:
-        data = self.runner.executor.world.data
-        self.states.append(np.concatenate([data.qpos[self._qpos], data.qvel[self._qvel]]))
-        self.commands.append(
-            np.concatenate(
-                [
-                    np.r_[arm.position, [] if arm.gripper_opening is None else [arm.gripper_opening]]
-                    for arm in self.arms
-                ]
-            )
-        )
-        if self.renderer is not None:
-            import mujoco
-
-            self.renderer.update_scene(data, self.camera)
-            for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
-                self.renderer.scene.flags[flag] = False
-            self.images.append(self.renderer.render().copy())
+        self.states.append(self.frames.state())
+        self.commands.append(self.frames.commanded())
+        if self.camera is not None:
+            self.images.append(self.camera.render())
 
     def episode(self, summary: RunSummary) -> Episode:
         """The run's episode: its frames, and its facts from the run's ``summary``."""
@@ -134,12 +92,12 @@ class RunRecorder:
             "besman/tau": tau.tolist(),
             "besman/success": bool(summary.success),
         }
-        videos = {CAMERA: np.array(self.images)} if self.renderer is not None else {}
+        videos = {CAMERA: np.array(self.images)} if self.camera is not None else {}
         return Episode(self.task.title, frames, videos, facts)
 
     def close(self) -> None:
-        if self.renderer is not None:
-            self.renderer.close()
+        if self.camera is not None:
+            self.camera.close()
 
 
 def record_run(
