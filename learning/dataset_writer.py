@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -31,7 +30,7 @@ import pyarrow.parquet as pq
 from besman.learning import dataset_format as fmt
 from besman.learning.dataset_reader import DatasetError, read_dataset
 from besman.skills.errors import InputError
-from besman.skills.storage import exchange_folders, write_error
+from besman.skills.storage import exchange_folders, folder_beside, write_error
 from besman.skills.writer_lock import WriterLock
 
 VIDEO_CODEC = "h264"  # LeRobot reads h264, hevc and AV1; H.264 encodes fastest on a CPU
@@ -144,8 +143,7 @@ class DatasetWriter:
         frames, the facts of the dataset's other episodes) in one step; returns its index."""
         length = self._check(episode)
         index = self.episodes
-        parent = self.root.absolute().parent
-        stage = Path(tempfile.mkdtemp(dir=parent, prefix=f".{self.root.name}.besman-", suffix=".tmp"))
+        stage = folder_beside(self.root)
         try:
             rows = list(self.dataset.episodes) if self.dataset is not None else []
             tasks = list(self.dataset.tasks) if self.dataset is not None else []

@@ -91,10 +91,28 @@ def put_in_place(temporary: Path, path: Path) -> None:
     os.replace(temporary, path)
 
 
+def folder_beside(path: Path) -> Path:
+    """A new empty folder beside ``path``, named as besman's temporaries of it, with the permissions an
+    ordinary new folder would have: the next state of the folder ``path``, for :func:`exchange_folders`."""
+    folder = Path(tempfile.mkdtemp(dir=path.absolute().parent, prefix=f".{path.name}{_MARK}", suffix=".tmp"))
+    os.chmod(folder, 0o777 & ~_UMASK)
+    return folder
+
+
 def exchange_folders(new: Path, path: Path) -> None:
     """Puts the folder ``new`` at ``path`` in one step: renamed there if nothing is, else exchanged with the
     folder there (Linux's ``renameat2(RENAME_EXCHANGE)``; ``new`` then holds the old one). A reader, or a
-    writer killed at any moment, sees the old folder or the new one, never a mix."""
+    writer killed at any moment, sees the old folder or the new one, never a mix; ``new``'s files written
+    for it (not hard links of older ones) reach the disk first."""
+    for folder, _, files in os.walk(new):
+        for name in files:
+            file = Path(folder, name)
+            if file.lstat().st_nlink == 1:
+                descriptor = os.open(file, os.O_RDONLY)
+                try:
+                    os.fsync(descriptor)
+                finally:
+                    os.close(descriptor)
     if not path.exists():
         os.rename(new, path)
         return

@@ -66,6 +66,8 @@ def test_episodes_append_with_their_default_columns_and_read_back(tmp_path):
         assert writer.append(episode(20, 1.0, task="move back", facts={"besman/seed": 5})) == 1
     dataset = read_dataset(tmp_path / "d")
     assert dataset.info["total_episodes"] == 2 and dataset.info["total_frames"] == 50
+    (tmp_path / "plain").mkdir()  # the dataset's folder has an ordinary folder's permissions
+    assert (tmp_path / "d").stat().st_mode == (tmp_path / "plain").stat().st_mode
     assert dataset.tasks == ("move", "move back") and dataset.facts(1) == {"besman/seed": 5}
     frames = dataset.frames(1)
     np.testing.assert_array_equal(
