@@ -72,7 +72,7 @@ def interrupted(error: BaseException) -> bool:
 def _kept(args: argparse.Namespace | None, started: float) -> str:
     """What an interrupted command leaves that is of use, for its one line."""
     command = getattr(args, "command", None)
-    if command in ("learn", "experiment"):  # their outputs keep each finished stage
+    if command in ("learn", "experiment", "record"):  # their outputs keep each finished stage (episode)
         return " (run it again to resume)"
     log = getattr(args, "log", None)
     if log and os.path.exists(log) and os.path.getmtime(log) >= started:

@@ -47,6 +47,7 @@ def doctor(dataset: Path) -> dict:
         [shutil.which("lerobot-doctor") or "lerobot-doctor", str(dataset.absolute()), "--json"],
         capture_output=True,
         text=True,
+        env={**os.environ, "HF_HUB_OFFLINE": "1"},  # it never asks the hub about a local folder
     )
     return json.loads(result.stdout)
 
