@@ -41,6 +41,22 @@ def episode(length: int, offset: float = 0.0, **changes) -> Episode:
     return Episode(**fields)
 
 
+def record_command(root: Path, episodes: int, *more: str) -> list[str]:
+    """``besman record pick-place`` into ``root``, in a process of its own."""
+    return [
+        sys.executable,
+        "-m",
+        "besman",
+        "record",
+        "pick-place",
+        "--dataset",
+        str(root),
+        "--episodes",
+        str(episodes),
+        *more,
+    ]
+
+
 def doctor(dataset: Path) -> dict:
     """lerobot-doctor's verdict on the dataset (offline: an absolute path), as its JSON report."""
     result = subprocess.run(
@@ -136,19 +152,7 @@ def aila_dataset(tmp_path_factory) -> Path:
     """Twenty pick-and-place demos on AILA, perception-perturbed, recorded by ``besman record``."""
     root = tmp_path_factory.mktemp("aila") / "dataset"
     result = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "besman",
-            "record",
-            "pick-place",
-            "--dataset",
-            str(root),
-            "--episodes",
-            "20",
-            "--perturb",
-            "perception",
-        ],
+        record_command(root, 20, "--perturb", "perception"),
         capture_output=True,
         text=True,
     )
@@ -213,17 +217,7 @@ def test_both_arms_of_a_handover_are_recorded(tmp_path):
 @pytest.mark.slow
 def test_kill_9_while_recording_leaves_a_valid_dataset_that_a_rerun_completes(tmp_path):
     root = tmp_path / "dataset"
-    command = [
-        sys.executable,
-        "-m",
-        "besman",
-        "record",
-        "pick-place",
-        "--dataset",
-        str(root),
-        "--episodes",
-        "6",
-    ]
+    command = record_command(root, 6)
     rng = np.random.default_rng(3)
     kills = 0
     while kills < 4:
@@ -245,7 +239,7 @@ def test_kill_9_while_recording_leaves_a_valid_dataset_that_a_rerun_completes(tm
     assert not list(tmp_path.glob(".dataset.besman-*"))  # the killed appends' folders removed
     # The same as a recording never killed.
     clean = tmp_path / "clean"
-    subprocess.run([*command[:6], str(clean), *command[7:]], check=True, capture_output=True)
+    subprocess.run(record_command(clean, 6), check=True, capture_output=True)
     assert pq.read_table(root / "data/chunk-000/file-000.parquet").equals(
         pq.read_table(clean / "data/chunk-000/file-000.parquet")
     )
