@@ -20,8 +20,9 @@ class BuildingBlocks:
         robot: the robot (a name or a folder).
         names: the blocks, in the order the task does them.
         roles: which label of the recordings plays each block, by how they are labelled: ``"clustered"``
-            (clusters named ``block1``... in the order they come in the task) and ``"examples"`` (the
-            labels of annotated example recordings).
+            (clusters named ``block1``... in the order they come in the task), ``"examples"`` (the
+            labels of annotated example recordings) and ``"gripper"`` (a robot's recordings, by its
+            gripper's events: ``before`` the grasp, ``holding``, ``after`` the release).
         anchors: two blocks whose goals, in the person's workspace and in the robot's, fit the map between
             the two (:func:`~besman.learning.retargeting.fit_workspace_map`), at the task tau ``centre``.
         centre: the task tau where the blocks are retargeted.

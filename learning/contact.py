@@ -51,6 +51,9 @@ class ContactMarkers:
 
 
 OBJECT_SIGNAL = "object velocity"
+# m/s: the least noise a contact signal is scored with. A simulated robot's gripper is noise-free, and a
+# zero noise scale makes the segment evidences' prior singular; people's markers are far noisier.
+NOISE_FLOOR = 1e-3
 GRIP = ContactMarkers()
 OBJECT_AND_GRIP = ContactMarkers(object="Box back")
 
@@ -93,7 +96,7 @@ def contact_signals(
         velocities = _smoothed(demo, [markers.object], smoothing, notes, name)
         if velocities is not None:
             values = resample(demo.times, velocities[0].velocities, rate)[1]
-            noise = noise_scale(values)
+            noise = max(noise_scale(values), NOISE_FLOOR)
             signals.append(ContactSignal(name, values, STILL, None, noise))
             signals.append(ContactSignal(name, values - hand, None, STILL, noise))  # relative to the hand
     if markers.grip is not None:
@@ -106,7 +109,7 @@ def contact_signals(
             distance = np.maximum(np.linalg.norm(separation, axis=1), 1e-9)
             rate_of_change = np.einsum("ti,ti->t", separation, relative) / distance  # d|separation|/dt
             values = resample(demo.times, rate_of_change, rate)[1]
-            noise = noise_factor * noise_scale(values)
+            noise = noise_factor * max(noise_scale(values), NOISE_FLOOR)
             signals.append(ContactSignal(name, values, SMOOTH_MOVEMENT, STILL, noise))
     return signals, notes
 

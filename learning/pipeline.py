@@ -6,7 +6,10 @@ label them, where each begins and how a rollout of one is scored), writing each 
 ``POOL/work/`` as soon as it is complete:
 
 1. **Recordings** (:mod:`besman.learning.pipeline_labels`): every ``.tsv``, ``.csv`` or ``.npz`` in the
-   folder is loaded and checked (the hand markers must be there) before anything is written.
+   folder is loaded and checked (the hand markers must be there) before anything is written. A LeRobot
+   dataset of the robot's own episodes instead (:mod:`besman.learning.dataset_demonstrations`) is labelled
+   by its gripper's events, its structure read from them, and its blocks imitated in the robot's joint
+   space (:func:`~besman.learning.pipeline_refinement.joint_shapes`), with no retargeting.
 2. **Segmentation** (``work/segments/<recording>.json``): :func:`~besman.learning.segment` per recording; a
    recording in which it finds no movement is an error.
 3. **Labels** (``work/labels.json``): the movement segments of all recordings are grouped into building
@@ -67,7 +70,7 @@ from besman.learning.pipeline_record import (
     learn_record,
     write_json,
 )
-from besman.learning.pipeline_refinement import block_shapes, refine_blocks, store_templates
+from besman.learning.pipeline_refinement import block_shapes, joint_shapes, refine_blocks, store_templates
 from besman.learning.pipeline_sequence import refine_sequences
 from besman.learning.task_structure import TaskStructure, recorded_blocks, task_structure
 from besman.skills.storage import read_json, sha256
@@ -98,10 +101,27 @@ class _Run:
     ) -> None:
         self.out, self.work = out, out / "work"
         self.settings, self.blocks, self.shown = settings, blocks, shown
-        self.files = recordings(demos)
-        self.demos = [load_recording(path) for path in self.files]
-        self.checksums = [sha256(read_recording(path)) for path in self.files]
-        self.role_labels = settings.role_labels(blocks)
+        self.robot = None  # a robot's recordings (a LeRobot dataset): name -> RobotRecording
+        if (Path(demos) / "meta" / "info.json").is_file():  # a LeRobot dataset of the robot's episodes
+            try:
+                from besman.learning.dataset_demonstrations import robot_recordings
+            except ImportError as error:
+                raise LearnError(
+                    f"--demos {demos}: a dataset needs {error.name}: pip install 'besman[datasets]'"
+                ) from None
+            from besman.sim.executor import Executor
+
+            arm = Executor(blocks.world(blocks.centre)).arm
+            found = robot_recordings(demos, arm, blocks.task)
+            self.robot = {recording.name: recording for recording in found}
+            self.files = [Path(recording.name) for recording in found]
+            self.demos = [recording.demo for recording in found]
+            self.checksums = [recording.checksum for recording in found]
+        else:
+            self.files = recordings(demos)
+            self.demos = [load_recording(path) for path in self.files]
+            self.checksums = [sha256(read_recording(path)) for path in self.files]
+        self.role_labels = settings.role_labels(blocks, robot=self.robot is not None)
         self.examples = load_examples(settings.examples, self.role_labels)
         self.record = learn_record(blocks, settings, self.files, self.checksums)
 
@@ -117,6 +137,7 @@ class _Run:
             self.settings,
             self.role_labels,
             self.work / "labels.json",
+            None if self.robot is None else [self.robot[path.name].held for path in self.files],
         )
 
     def structure(self, instances: dict[str, list[dict]]) -> TaskStructure:
@@ -131,12 +152,16 @@ class _Run:
                 for i in runs
                 if i["file"] == path.name
             }
-            recorded.append(recorded_blocks(demo, found))
+            held = None if self.robot is None else self.robot[path.name].held
+            recorded.append(recorded_blocks(demo, found, held))
         structure = task_structure(recorded, self.blocks.names)
         write_json(cache, {"schema_version": SCHEMA_VERSION, "structure": structure.as_dict()})
         return structure
 
     def shapes(self, instances: dict[str, list[dict]]) -> dict[str, Path]:
+        if self.robot is not None:
+            joints = {name: (r.demo.times, r.joints) for name, r in self.robot.items()}
+            return joint_shapes(instances, joints, self.blocks, self.settings.n_weights, self.work)
         demos = {path.name: demo for path, demo in zip(self.files, self.demos, strict=True)}
         return block_shapes(instances, demos, self.blocks, self.settings.n_weights, self.work)
 

@@ -115,13 +115,23 @@ def label_blocks(
     settings: LearnSettings,
     role_labels: dict[str, str],
     cache: Path,
+    held: list[np.ndarray] | None = None,
 ) -> dict[str, list[dict]]:
     """Each block's instances: per recording, the longest run of consecutive segments with the label that
-    plays the block (``role_labels``); labelled like the ``examples`` or clustered. Cached in ``cache``."""
+    plays the block (``role_labels``); labelled like the ``examples``, by the gripper's events (``held``,
+    per recording and sample: a robot's recordings; :func:`gripper_labels`) or clustered. Cached in
+    ``cache``."""
     if cache.is_file():
         return read_json(cache, LearnError)["blocks"]
     flat = [s for per_demo in movements for s in per_demo]
-    if examples:
+    if held is not None and not examples:
+        names = [
+            name
+            for per_demo, mask in zip(movements, held, strict=True)
+            for name in gripper_labels(per_demo, mask)
+        ]
+        method = "gripper events: the largest movement before the grasp, while holding and after the release"
+    elif examples:
         annotated = [s for demo in examples for s in ground_truth_segments(demo)]
         annotated = [s for s in annotated if not s.label.endswith("_part") and s.label != "idle"]
         names = label_few_shot(annotated, flat)
@@ -171,6 +181,53 @@ def label_blocks(
         instances[block] = found
     write_json(cache, {"schema_version": SCHEMA_VERSION, "method": method, "blocks": instances})
     return instances
+
+
+GRIPPER_LABELS = ("before", "holding", "after")
+SHORTEST_HOLD = 0.5  # s: the gripper closed for less is closing or opening, not holding
+
+
+def gripper_labels(movements: list[DemonstrationSegment], held: np.ndarray) -> list[str]:
+    """A robot recording's movements labelled by its gripper's events: of the last hold (the grasp that was
+    carried: earlier ones failed and were retried), the free movement before it that moves the hand
+    furthest ("before"), the held one ("holding") and the free one after the release ("after"); the others
+    "other"."""
+    demo = movements[0].demo
+    edges = np.flatnonzero(np.diff(np.r_[0, held.astype(int), 0]))
+    holds = [
+        (int(a), int(b) - 1)
+        for a, b in zip(edges[::2], edges[1::2], strict=True)
+        if demo.times[b - 1] - demo.times[a] >= SHORTEST_HOLD
+    ]
+    names = ["other"] * len(movements)
+    if not holds:
+        return names
+    close, release = holds[-1]
+    previous = holds[-2][1] if len(holds) > 1 else 0
+    hand = demo.channels[HAND_MARKERS[0]]
+
+    def moved(k: int) -> float:
+        return float(np.linalg.norm(hand[movements[k].end] - hand[movements[k].start]))
+
+    def holding(segment) -> bool:
+        return bool(np.median(held[segment.start : segment.end + 1]))
+
+    slack = round(0.1 * demo.rate)  # a segment may end a few samples past the gripper's event
+    phases = {
+        "before": [
+            k
+            for k, s in enumerate(movements)
+            if previous <= s.start and s.end <= close + slack and not holding(s)
+        ],
+        "holding": [
+            k for k, s in enumerate(movements) if close <= s.start and s.end <= release + slack and holding(s)
+        ],
+        "after": [k for k, s in enumerate(movements) if s.start >= release - slack and not holding(s)],
+    }
+    for label, candidates in phases.items():
+        if candidates:
+            names[max(candidates, key=moved)] = label
+    return names
 
 
 def longest_run(segments: list[DemonstrationSegment], names: list[str], label: str) -> tuple[int, int] | None:

@@ -66,16 +66,19 @@ class LearnSettings:
     spread: float = 0.1
     refinement: str = "blocks"
 
-    def role_labels(self, blocks: BuildingBlocks) -> dict[str, str]:
-        """The label that plays each block: the task's default for how the recordings are labelled, unless
-        ``roles`` names another."""
+    def role_labels(self, blocks: BuildingBlocks, robot: bool = False) -> dict[str, str]:
+        """The label that plays each block: the task's default for how the recordings are labelled (like
+        the examples; a ``robot``'s by its gripper's events; clustered), unless ``roles`` names another."""
         given = dict(self.roles)
         unknown = sorted(set(given) - set(blocks.names))
         if unknown:
             raise LearnError(
                 f"roles: unknown block {unknown[0]!r}; blocks of {blocks.task}: {', '.join(blocks.names)}"
             )
-        return {**blocks.roles["examples" if self.examples else "clustered"], **given}
+        labelled = "examples" if self.examples else "gripper" if robot else "clustered"
+        if labelled not in blocks.roles:
+            raise LearnError(f"task {blocks.task} names no roles for recordings labelled by {labelled}")
+        return {**blocks.roles[labelled], **given}
 
     def check(self, blocks: BuildingBlocks) -> None:
         for name, low in (("tasks", 2), ("budget", 1), ("n_blocks", 3), ("n_weights", 2)):

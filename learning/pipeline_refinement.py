@@ -33,7 +33,8 @@ from besman.learning.retargeting import fit_workspace_map, retarget
 from besman.sim.evaluation import BatchedTask
 from besman.sim.executor import Executor
 from besman.sim.manipulation import PlanningError
-from besman.skills import MovementPrimitive, SkillTemplate, SkillTemplatePool
+from besman.skills import DMP, MovementPrimitive, SkillTemplate, SkillTemplatePool
+from besman.skills.dmp_core import DMPSettings
 from besman.skills.seeds import child_seed
 from besman.skills.storage import read_json
 from besman.skills.tasks import TaskBounds
@@ -76,6 +77,67 @@ def block_shapes(
             shape.provenance["segments"] = instances[block]
             shape.save(path)
     return shapes
+
+
+RESTING = 0.02  # a sample moving at less than this share of its instance's peak joint speed is at rest
+
+
+def joint_shapes(
+    instances: dict[str, list[dict]],
+    joints: dict[str, tuple[np.ndarray, np.ndarray]],
+    blocks: BuildingBlocks,
+    n_weights: int,
+    work: Path,
+) -> dict[str, Path]:
+    """Each block imitated in the robot's own joint space from its ``instances`` in a robot's recordings
+    (``joints`` by recording name: its times and joint positions): one joint-space primitive of the mean
+    shape, at rest at both ends (the rest before and after each instance cut off), set between the block's
+    planned start and goal at the task's centre. No workspace map: the recordings are the robot's."""
+    shapes = {block: work / "shapes" / f"{block}.json" for block in blocks.names}
+    if all(path.is_file() for path in shapes.values()):
+        return shapes
+    world = blocks.world(blocks.centre)
+    arm = Executor(world).arm
+    for block, path in shapes.items():
+        if path.is_file():
+            continue
+        demonstrations = [_moving(*joints[i["file"]], i["start"], i["end"]) for i in instances[block]]
+        times = [t - t[0] for t, _ in demonstrations]
+        positions = [q for _, q in demonstrations]
+        velocities = [np.gradient(q, t, axis=0, edge_order=2) for t, q in demonstrations]
+        for v in velocities:
+            v[[0, -1]] = 0.0
+        accelerations = [
+            np.gradient(v, t, axis=0, edge_order=2)
+            for v, (t, _) in zip(velocities, demonstrations, strict=True)
+        ]
+        for a in accelerations:
+            a[[0, -1]] = 0.0
+        dmp = DMP(arm.dofs, settings=DMPSettings(n_weights=n_weights))
+        dmp.imitate(times, positions, velocities=velocities, accelerations=accelerations)
+        start = blocks.start(world, block, blocks.centre)
+        dmp.configure(
+            start=start.start, goal=start.goal, start_velocity=0.0, start_acceleration=0.0, goal_velocity=0.0
+        )
+        provenance = {
+            "imitation": "the robot's recorded joint positions, in joint space (no retargeting)",
+            "segments": instances[block],
+        }
+        shape = MovementPrimitive(
+            dmp, block, robot=arm.world.robot.name, group=arm.name, provenance=provenance
+        )
+        path.parent.mkdir(parents=True, exist_ok=True)
+        shape.save(path)
+    return shapes
+
+
+def _moving(times: np.ndarray, joints: np.ndarray, start: int, end: int) -> tuple[np.ndarray, np.ndarray]:
+    """An instance's samples without the rest at its ends (a reach that begins while the gripper opens)."""
+    times, joints = times[start : end + 1], joints[start : end + 1]
+    speed = np.linalg.norm(np.gradient(joints, times, axis=0), axis=1)
+    moving = np.flatnonzero(speed > RESTING * speed.max())
+    first, last = max(int(moving[0]) - 1, 0), min(int(moving[-1]) + 1, len(times) - 1)
+    return times[first : last + 1], joints[first : last + 1]
 
 
 def refine_blocks(
@@ -150,7 +212,8 @@ def store_templates(
                 "robot": robot,
                 "recordings": record["recordings"],
                 "instances": prototype.provenance.get("segments", []),
-                "workspace_map": prototype.provenance["retargeting"]["map"],
+                # None for a robot's own recordings (imitated in its joint space, no map).
+                "workspace_map": prototype.provenance.get("retargeting", {}).get("map"),
                 "training": [
                     {
                         "task_tau": run["tau"],

@@ -94,15 +94,21 @@ class TaskStructure:
         )
 
 
-def recorded_blocks(demo: Demonstration, instances: dict[str, tuple[int, int]]) -> list[RecordedBlock]:
+def recorded_blocks(
+    demo: Demonstration, instances: dict[str, tuple[int, int]], held: np.ndarray | None = None
+) -> list[RecordedBlock]:
     """One recording's block instances (block -> first and last sample), in the order they start, each with
-    whether the object moved with the hand over it."""
+    whether the object moved with the hand over it - or, for a robot's recording, whether its gripper was
+    closed (``held``, per sample) over the middle half of it."""
     hand = demo.channels.get(HAND_MARKER)
     item = demo.channels.get(OBJECT_MARKER)
     found = []
     for block, (start, end) in sorted(instances.items(), key=lambda entry: entry[1][0]):
         holding = None
-        if hand is not None and item is not None:
+        if held is not None:
+            quarter = (end - start) // 4
+            holding = bool(np.median(held[start + quarter : end - quarter + 1]))
+        elif hand is not None and item is not None:
             moved = np.linalg.norm(hand[end] - hand[start])
             carried = np.linalg.norm(item[end] - item[start])
             if np.isfinite(moved) and np.isfinite(carried) and moved >= SMALLEST_MOVE:

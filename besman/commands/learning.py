@@ -1,4 +1,5 @@
-"""`besman learn`: from a folder of human recordings to a skill template pool of a task's building blocks."""
+"""`besman learn`: from a folder of human recordings, or a dataset of the robot's own episodes, to a skill
+template pool of a task's building blocks."""
 
 from __future__ import annotations
 
@@ -67,9 +68,15 @@ def register(commands) -> None:
     """Adds this module's commands to the parser's subcommands."""
     learn = commands.add_parser(
         "learn",
-        help="learn skill templates from human recordings (segment, label, imitate, retarget, refine, pool)",
+        help="learn skill templates from human recordings or a robot's dataset (segment, label, imitate, "
+        "retarget, refine, pool)",
     )
-    learn.add_argument("--demos", required=True, help="a folder of recordings (.tsv, .csv, .npz)")
+    learn.add_argument(
+        "--demos",
+        required=True,
+        help="a folder of recordings (.tsv, .csv, .npz) of people, or a LeRobot v3.0 dataset of the robot's "
+        "own episodes (besman record; docs/datasets.md)",
+    )
     learn.add_argument("--out", required=True, help="the pool folder (resumed if a run was interrupted)")
     learn.add_argument(
         "--task",

@@ -117,6 +117,7 @@ class BlockTask(BatchedTask):
 ROLES = {  # which recorded label plays each block: clusters named in the order of the task, or annotations
     "clustered": {"reach": "block4", "carry": "block5", "return": "block6"},
     "examples": {"reach": "approach_right", "carry": "move_obj_shelf", "return": "move_to_rest_down"},
+    "gripper": {"reach": "before", "carry": "holding", "return": "after"},  # a robot's recordings
 }
 
 
