@@ -17,10 +17,13 @@ check is stopped once its first line is read.
 from __future__ import annotations
 
 import argparse
+import atexit
 import json
+import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -53,8 +56,9 @@ def helps() -> list[list[str]]:
     return [[*path, "--help"] for path, _ in commands(build_parser())]
 
 
-def listings() -> list[list[str]]:
-    """Every command that lists, shows or checks, with the arguments of the README's tour."""
+def listings(dataset: str) -> list[list[str]]:
+    """Every command that lists, shows or checks, with the arguments of the README's tour (``dataset``: one
+    episode recorded before the timing)."""
     pool = "examples/pools/pick_place_aila"
     return [
         ["demo", "--list"],
@@ -71,6 +75,7 @@ def listings() -> list[list[str]]:
         ["pool", "show", pool, "reach"],
         ["demos", "show", "examples/data/subject1_run1.tsv"],
         ["examples"],
+        ["dataset", "show", dataset],
     ]
 
 
@@ -131,7 +136,14 @@ def main() -> None:
     bare = [sys.executable, "-c", "pass"]
     # name -> (kind, the process to start)
     started = {" ".join(["besman", *argv]): ("help", [str(script), *argv]) for argv in helps()}
-    started |= {" ".join(["besman", *argv]): ("listing", [str(script), *argv]) for argv in listings()}
+    folder = tempfile.mkdtemp(prefix="besman-startup-")
+    atexit.register(shutil.rmtree, folder, True)
+    dataset = Path(folder) / "dataset"
+    record = [str(script), "record", "pick-place", "--dataset", str(dataset), "--episodes", "1"]
+    subprocess.run(record, check=True, capture_output=True)
+    started |= {
+        " ".join(["besman", *argv]): ("listing", [str(script), *argv]) for argv in listings(str(dataset))
+    }
     started |= {
         " ".join(["besman", *argv]): ("first tick", [sys.executable, "-c", FIRST_TICK, *argv])
         for argv in runs()
