@@ -4,7 +4,8 @@ pipeline segments and labels as it does a person's, with what a robot's recordin
 not - its joints, and the gripper's events:
 
 - the hand: the tool-centre point's pose by forward kinematics of the measured joints (the dataset's
-  ``observation.state`` names ``<joint>.pos`` for every joint of the arm), as three virtual hand markers
+  ``observation.state`` names ``<joint>.pos`` for every joint of the arm) or, in an end-effector dataset,
+  as recorded (``tcp.x`` ... ``tcp.qz``; its joints by inverse kinematics), as three virtual hand markers
   that :func:`~besman.learning.preprocessing.hand_pose` reads back as that pose (left - right along the
   TCP's y, the top along its x, their centroid at the TCP);
 - the grip: two markers ("Thumb", "Index") apart by twice the commanded opening (the action's
@@ -31,6 +32,10 @@ from besman.learning.imitation import HAND_MARKERS
 from besman.learning.pipeline_record import LearnError
 
 MARKER_SPACING = 0.03  # m: the virtual markers' distance from the tool-centre point
+# An end-effector dataset's pose of the tool-centre point in observation.state (m, world frame; a unit
+# quaternion w, x, y, z): its joints are found by inverse kinematics, within IK_TOLERANCE (m, rad).
+TCP_NAMES = ("tcp.x", "tcp.y", "tcp.z", "tcp.qw", "tcp.qx", "tcp.qy", "tcp.qz")
+IK_TOLERANCE = (1e-3, 1e-2)
 CLOSED_MARGIN = 0.002  # m: commanded this far below its open opening, the gripper is closing or closed
 
 
@@ -62,13 +67,14 @@ def robot_recordings(path: str | Path, arm, task: str) -> list[RobotRecording]:
         )
     state = list(dataset.features.get("observation.state", {}).get("names") or [])
     actions = list(dataset.features.get("action", {}).get("names") or [])
-    wanted = [f"{joint}.pos" for joint in arm.joints]
-    missing = [name for name in wanted if name not in state]
+    joint_names = [f"{joint}.pos" for joint in arm.joints]
+    wanted = joint_names if all(name in state for name in joint_names) else list(TCP_NAMES)
     gripper = next((i for i, name in enumerate(actions) if name.endswith(".gripper")), None)
-    if missing or gripper is None:
+    if any(name not in state for name in wanted) or gripper is None:
         raise LearnError(
-            f"{path}: observation.state needs {', '.join(missing) or 'its joints'} and action a "
-            "<arm>.gripper column (the gripper's events are the contact signal)"
+            f"{path}: observation.state needs the arm's joints ({', '.join(joint_names)}) or the tool-centre "
+            f"point's pose ({', '.join(TCP_NAMES)}), and action a <arm>.gripper column (the gripper's events "
+            "are the contact signal)"
         )
     columns = [state.index(name) for name in wanted]
     opened = arm.gripper.open
@@ -78,7 +84,8 @@ def robot_recordings(path: str | Path, arm, task: str) -> list[RobotRecording]:
         if facts.get("besman/success") is False or facts.get("besman/task", task) != task:
             continue  # a failed run, or another task's, teaches nothing of this one
         frames = dataset.frames(index)
-        joints = frames["observation.state"][:, columns].astype(float)
+        recorded = frames["observation.state"][:, columns].astype(float)
+        joints = recorded if wanted == joint_names else _joints_of(arm, recorded, f"{path}: episode {index}")
         opening = frames["action"][:, gripper].astype(float)
         digest = hashlib.sha256(joints.tobytes() + opening.tobytes()).hexdigest()
         demo = _demonstration(arm, joints, opening, frames["frame_index"], dataset.fps, f"{path}#{index}")
@@ -88,6 +95,21 @@ def robot_recordings(path: str | Path, arm, task: str) -> list[RobotRecording]:
     if len(found) < 2:
         raise LearnError(f"{path}: {len(found)} successful episodes of {task}; learning needs at least two")
     return found
+
+
+def _joints_of(arm, poses: np.ndarray, where: str) -> np.ndarray:
+    """The arm's joints along a recorded path of the tool-centre point ((T, 7): x, y, z, qw, qx, qy, qz), by
+    inverse kinematics from the previous sample's (the first from the arm's home); an error names the first
+    sample the arm cannot reach."""
+    joints, previous = np.empty((len(poses), arm.dofs)), arm.home
+    for k, pose in enumerate(poses):
+        result = arm.solve_ik(pose[:3], pose[3:], initial=previous)
+        if result.position_error > IK_TOLERANCE[0] or result.orientation_error > IK_TOLERANCE[1]:
+            raise LearnError(
+                f"{where}: the arm cannot reach the recorded pose of sample {k} ({result.message})"
+            )
+        joints[k] = previous = result.qpos
+    return joints
 
 
 def _demonstration(arm, joints, opening, frame_index, fps: int, source: str) -> Demonstration:

@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from besman.learning.dataset_demonstrations import robot_recordings
+from besman.learning.dataset_demonstrations import TCP_NAMES, robot_recordings
+from besman.learning.dataset_reader import read_dataset
+from besman.learning.dataset_writer import DatasetSpec, DatasetWriter, Episode
 from besman.learning.labelling import DemonstrationSegment
 from besman.learning.pipeline_labels import gripper_labels
 from besman.learning.pipeline_record import LearnError
@@ -27,6 +29,12 @@ def record(root: Path, episodes: int, *more: str) -> Path:
     command = [sys.executable, "-m", "besman", "record", "pick-place", "--dataset", str(root)]
     subprocess.run([*command, "--episodes", str(episodes), *more], check=True, capture_output=True)
     return root
+
+
+def learn_command(demos: Path, pool: Path) -> list[str]:
+    """``besman learn`` from ``demos`` into ``pool`` with a small budget (2 training tasks, 8 rollouts)."""
+    command = [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(pool)]
+    return [*command, "--tasks", "2", "--budget", "8"]
 
 
 @pytest.fixture(scope="module")
@@ -79,6 +87,35 @@ def test_the_gripper_events_label_the_blocks_before_during_and_after_the_grasp(t
     )
 
 
+def end_effector_dataset(source: Path, target: Path, arm) -> Path:
+    """``source``'s episodes with the tool-centre point's pose (forward kinematics) for the joints."""
+    dataset = read_dataset(source)
+    names = dataset.features["observation.state"]["names"]
+    columns = [names.index(f"{joint}.pos") for joint in arm.joints]
+    features = {
+        k: dict(v) for k, v in dataset.features.items() if k in ("action", "observation.environment_state")
+    }
+    features["observation.state"] = {"dtype": "float32", "shape": [7], "names": list(TCP_NAMES)}
+    with DatasetWriter(target, DatasetSpec(dataset.fps, features, dataset.info["robot_type"])) as writer:
+        for index in range(len(dataset.episodes)):
+            frames = dataset.frames(index)
+            poses = [arm.site_pose(q) for q in frames["observation.state"][:, columns].astype(float)]
+            frames["observation.state"] = np.array([np.r_[pose.position, pose.quaternion] for pose in poses])
+            kept = {k: frames[k] for k in features}
+            writer.append(Episode(dataset.episodes[index]["tasks"][0], kept, facts=dataset.facts(index)))
+    return target
+
+
+def test_an_end_effector_datasets_joints_are_found_by_inverse_kinematics(two_episodes, arm, tmp_path):
+    recording = robot_recordings(end_effector_dataset(two_episodes, tmp_path / "ee", arm), arm, "pick-place")[
+        0
+    ]
+    recorded = read_dataset(tmp_path / "ee").frames(0)["observation.state"]
+    reached = np.array([arm.site_pose(q).position for q in recording.joints])
+    assert np.abs(reached - recorded[:, :3]).max() < 1e-3  # float32 poses, IK within 1 mm
+
+
+@pytest.mark.slow
 def test_datasets_that_cannot_teach_the_robot_are_refused_naming_why(tmp_path, arm):
     ur5e = record(tmp_path / "ur5e", 2, "--robot", "ur5e")
     with pytest.raises(LearnError, match=r"recorded on 'ur5e', learned for aila; .* record on the robot"):
@@ -92,20 +129,7 @@ def test_a_tree_learned_from_fifteen_noisy_demonstrations_succeeds_on_unseen_tau
     dataset = record(tmp_path / "demos", 15, "--perturb", "perception")  # seeds 0-14, IK-planned
     pool = tmp_path / "pool"
     learned = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "besman",
-            "learn",
-            "--demos",
-            str(dataset),
-            "--out",
-            str(pool),
-            "--tasks",
-            "2",
-            "--budget",
-            "8",
-        ],
+        learn_command(dataset, pool),
         capture_output=True,
         text=True,
     )
@@ -113,3 +137,14 @@ def test_a_tree_learned_from_fifteen_noisy_demonstrations_succeeds_on_unseen_tau
     assert "reach -> carry -> return (15 of 15 recordings" in learned.stdout
     successes = [run(tree=pool / "tree.yaml", seed=seed).success for seed in range(1000, 1030)]
     assert sum(successes) >= 27, successes  # >= 90 % of 30 tau none of the demonstrations had
+    # The same demonstrations as an end-effector dataset: their joints by inverse kinematics.
+    arm = Executor(BLOCKS.world(BLOCKS.centre)).arm
+    end_effector = end_effector_dataset(dataset, tmp_path / "end_effector", arm)
+    learned = subprocess.run(
+        learn_command(end_effector, tmp_path / "pool_ee"), capture_output=True, text=True
+    )
+    assert learned.returncode == 0, learned.stderr
+    successes = [
+        run(tree=tmp_path / "pool_ee" / "tree.yaml", seed=seed).success for seed in range(1000, 1010)
+    ]
+    assert sum(successes) >= 9, successes
