@@ -15,6 +15,7 @@ does; each camera's frames of an episode are one MP4 (H.264 through PyAV, ``yuv4
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 from collections.abc import Mapping
@@ -220,11 +221,7 @@ class DatasetWriter:
                     f"{where}: {name} must be uint8 of shape {[length, *features[name]['shape']]}"
                 )
         if self.dataset is not None and self.dataset.episodes:
-            facts = {
-                k
-                for k in self.dataset.episodes[0]
-                if "/" in k and k.split("/")[0] not in ("data", "videos", "stats", "meta")
-            }
+            facts = set(self.dataset.facts(0))
             if facts != set(episode.facts):
                 raise InputError(f"{where}: facts {sorted(episode.facts)}, the dataset's {sorted(facts)}")
         return length
@@ -288,8 +285,6 @@ class DatasetWriter:
             writer.write_table(table)
 
     def _write_meta(self, stage: Path, rows: list[dict], tasks: list[str], frames: int) -> None:
-        import json
-
         episodes = stage / fmt.EPISODES_PATH.format(chunk_index=0, file_index=0)
         episodes.parent.mkdir(parents=True, exist_ok=True)
         pq.write_table(pa.Table.from_pylist(rows), episodes)
