@@ -17,6 +17,8 @@ LONG_FIRST = (
     "test_install.py",
     "test_benchmarks.py",
     "test_throwing_experiment.py",
+    "test_learning_from_datasets.py",
+    "test_datasets.py",
     "test_hardening.py",
     "test_widowx_pair.py",
     "test_widowx.py",
