@@ -121,8 +121,9 @@ def statistics(frames: np.ndarray) -> dict[str, np.ndarray]:
 def image_statistics(frames: np.ndarray) -> dict[str, np.ndarray]:
     """A camera's statistics per colour channel, scaled to [0, 1], of shape (3, 1, 1) as LeRobot's."""
     found = statistics(np.asarray(frames).reshape(-1, frames.shape[-1]) / 255.0)
-    return {name: value if name == "count" else value.reshape(-1, 1, 1) for name, value in found.items()} | {
-        "count": np.array([len(frames)])
+    return {
+        name: np.array([len(frames)]) if name == "count" else value.reshape(-1, 1, 1)
+        for name, value in found.items()
     }
 
 

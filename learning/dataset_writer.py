@@ -29,7 +29,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from besman.learning import dataset_format as fmt
-from besman.learning.dataset_reader import DatasetError, read_dataset
+from besman.learning.dataset_reader import DatasetError, LeRobotDataset, read_dataset
 from besman.skills.errors import InputError
 from besman.skills.storage import exchange_folders, folder_beside, write_error
 from besman.skills.writer_lock import WriterLock
@@ -183,15 +183,14 @@ class DatasetWriter:
                     row[f"stats/{feature}/{name}"] = np.asarray(value).tolist()
             row |= {"meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0, **dict(episode.facts)}
             rows.append(row)
-            self._write_meta(stage, rows, tasks, frames + length)
+            info = self._write_meta(stage, rows, tasks, frames + length)
             exchange_folders(stage, self.root)
         except OSError as error:
             raise write_error(self.root, error) from error
         finally:
-            shutil.rmtree(
-                stage, ignore_errors=True
-            )  # the old state (after the exchange) or an unfinished one
-        self.dataset = read_dataset(self.root)
+            # The old state (after the exchange) or an unfinished one.
+            shutil.rmtree(stage, ignore_errors=True)
+        self.dataset = LeRobotDataset(self.root, info, tuple(tasks), tuple(rows))  # as just written
         return index
 
     def _check(self, episode: Episode) -> int:
@@ -232,11 +231,11 @@ class DatasetWriter:
             return 0, 0
         chunk, file = rows[-1]["data/chunk_index"], rows[-1]["data/file_index"]
         current = self.root / fmt.DATA_PATH.format(chunk_index=chunk, file_index=file)
-        row_bytes = current.stat().st_size / max(
-            1,
-            sum(r["length"] for r in rows if (r["data/chunk_index"], r["data/file_index"]) == (chunk, file)),
+        size = current.stat().st_size
+        held = sum(
+            r["length"] for r in rows if (r["data/chunk_index"], r["data/file_index"]) == (chunk, file)
         )
-        if current.stat().st_size + row_bytes * length <= fmt.DATA_FILES_SIZE_IN_MB * 1e6:
+        if size + size / max(1, held) * length <= fmt.DATA_FILES_SIZE_IN_MB * 1e6:
             return chunk, file
         return fmt.chunk_and_file(chunk * fmt.CHUNKS_SIZE + file + 1)
 
@@ -284,7 +283,7 @@ class DatasetWriter:
                     writer.write_table(earlier.read_row_group(group).cast(schema))
             writer.write_table(table)
 
-    def _write_meta(self, stage: Path, rows: list[dict], tasks: list[str], frames: int) -> None:
+    def _write_meta(self, stage: Path, rows: list[dict], tasks: list[str], frames: int) -> dict:
         episodes = stage / fmt.EPISODES_PATH.format(chunk_index=0, file_index=0)
         episodes.parent.mkdir(parents=True, exist_ok=True)
         pq.write_table(pa.Table.from_pylist(rows), episodes)
@@ -314,6 +313,7 @@ class DatasetWriter:
             tasks=len(tasks),
         )
         (stage / fmt.INFO).write_text(json.dumps(info, indent=4) + "\n")
+        return info
 
 
 def video_info(feature: dict, fps: int) -> dict:

@@ -159,7 +159,7 @@ class TaskEnv(gymnasium.Env):
     def _throw(self, theta):
         from besman.sim.motions import MotionStatus
 
-        if not self.task.batched(self.robot).feasible(theta[None])[0]:
+        if not self.executor.task.feasible(theta[None])[0]:  # the task of the executor's own world
             return self._observation(), 0.0, True, False, self._info() | {"failure": "infeasible throw"}
         self.executor.start_throw(theta)
         while self.executor.throw.status is MotionStatus.RUNNING:
