@@ -33,15 +33,26 @@ import numpy as np
 
 from besman.robots import menagerie, packages
 from besman.robots.description import DescriptionError, ModelSource, RobotDescription
-from besman.robots.model_files import check_model_files
+from besman.robots.fields import finite_number
+from besman.robots.model_files import check_assets_found, check_model_files
 from besman.skills.errors import InputError
 from besman.skills.validation import checked, instance
 
 JOINT = mujoco.mjtTrn.mjTRN_JOINT
 NOT_LIMITED = mujoco.mjtLimited.mjLIMITED_FALSE
-CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}
-# Options counted in whole numbers (solver iterations: noslip_iterations > 0 turns on the no-slip solver).
-WHOLE_OPTIONS = ("noslip_iterations",)
+# Options that name a choice, spelt as MJCF spells them.
+CHOICES = {
+    "cone": {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC},
+    "integrator": {
+        "Euler": mujoco.mjtIntegrator.mjINT_EULER,
+        "RK4": mujoco.mjtIntegrator.mjINT_RK4,
+        "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+        "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+    },
+}
+# Options counted in whole numbers (solver iterations: noslip_iterations > 0 turns on the no-slip solver),
+# and the most of each that is not a slip of the keyboard (every step runs them).
+WHOLE_OPTIONS = {"noslip_iterations": 1000}
 
 
 def model_path(source: ModelSource, folder: Path, where: str) -> Path:
@@ -65,19 +76,23 @@ def _inside(folder: Path, file: str, where: str) -> Path:
     return path
 
 
-def _spec(path: Path) -> mujoco.MjSpec:
+def _spec(path: Path, where: str) -> mujoco.MjSpec:
+    """The model file ``path`` parsed, its asset files found (``where``: the field that names it)."""
     check_model_files(path)  # MuJoCo opens them by path, with no check of its own
     try:
-        return mujoco.MjSpec.from_file(str(path))
+        spec = mujoco.MjSpec.from_file(str(path))
     except ValueError as error:
         hint = ""
         if "mujocoinclude" in str(error):  # packages often ship fragments, not models
             hint = (
                 ": it is a fragment for other models to include; give as the model a file of your own beside "
                 "the description that includes it where it belongs (<mujoco><worldbody><include "
-                f'file="{path}"/></worldbody></mujoco> for bodies, inside <asset> for assets)'
+                f'file="{path}"/></worldbody></mujoco> for bodies, inside <asset> for assets), with '
+                '<compiler meshdir="..."/> the absolute folder of its meshes if they are not beside it'
             )
         raise InputError(f"{path}: the model does not load: {error}{hint}") from None
+    check_assets_found(spec, where)
+    return spec
 
 
 def _turn(yaw: float) -> np.ndarray:
@@ -145,23 +160,27 @@ def build_spec(description: RobotDescription, *, meshes: bool = True) -> mujoco.
     """The robot's assembled, uncompiled model (see the module documentation); with ``meshes=False``
     :func:`without_meshes`."""
     where = str(description.file)
-    spec = _spec(model_path(description.model, description.folder, f"{where}.model"))
+    spec = _spec(model_path(description.model, description.folder, f"{where}.model"), f"{where}.model")
     for name, value in description.options.items():
-        if name == "cone":
-            if value not in CONES:
-                raise DescriptionError(f"{where}.options.cone: one of {', '.join(CONES)}, got {value!r}")
-            spec.option.cone = CONES[value]
+        field = f"{where}.options.{name}"
+        if name in CHOICES:
+            if not isinstance(value, str) or value not in CHOICES[name]:
+                raise DescriptionError(f"{field}: one of {', '.join(CHOICES[name])}, got {value!r}")
+            setattr(spec.option, name, CHOICES[name][value])
         elif name in WHOLE_OPTIONS:
-            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-                raise DescriptionError(f"{where}.options.{name}: expected a whole number >= 0, got {value!r}")
+            most = WHOLE_OPTIONS[name]
+            if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value <= most:
+                raise DescriptionError(f"{field}: expected a whole number from 0 to {most}, got {value!r}")
             setattr(spec.option, name, value)
-        elif not isinstance(value, int | float) or isinstance(value, bool) or not value > 0:
-            raise DescriptionError(f"{where}.options.{name}: expected a positive number, got {value!r}")
+        elif not finite_number(value, field) > 0:
+            raise DescriptionError(f"{field}: expected a positive number, got {value!r}")
         else:
             setattr(spec.option, name, float(value))
     for index, part in enumerate(description.attach):
         part_where = f"{where}.attach[{index}]"
-        child = _spec(model_path(part.model, description.folder, f"{part_where}.model"))
+        child = _spec(
+            model_path(part.model, description.folder, f"{part_where}.model"), f"{part_where}.model"
+        )
         if part.body is not None:
             body = spec.body(part.body)
             if body is None:

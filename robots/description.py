@@ -31,7 +31,9 @@ Top-level fields (schema version 2; a field the version does not have is refused
   there), names prefixed; the keyframe is extended
 - ``options`` (optional): simulation options the model or an attached part needs (``impratio``, ``cone``,
   ``timestep``; ``noslip_iterations``: MuJoCo's no-slip solver, for a grip that must not turn an object
-  held off its middle, as the handover's bar); at attach the parent's win
+  held off its middle, as the handover's bar; ``integrator``: ``Euler``, ``RK4``, ``implicit`` or
+  ``implicitfast``, as MJCF spells them: fragments leave Euler, which takes actuator damping explicitly);
+  at attach the parent's win
 - ``mount`` (optional): ``{"position": [x, y, z], "yaw_degrees": deg}``: where the robot's root bodies stand
   (turned about z, then shifted), however the model orients them
 - ``floor`` (optional): true: besman's floor and lights for a model that has none (a raised mount gets a
@@ -83,6 +85,7 @@ from typing import Any
 
 from besman.robots.fields import (
     DescriptionError,
+    finite_number,
     finite_numbers,
     json_object,
     name_list,
@@ -93,7 +96,7 @@ from besman.skills.storage import check_schema_version, optional_field, read_jso
 
 SCHEMA_VERSION = 2
 # Simulation options a description may set (an attached gripper may need them; the parent's are kept).
-OPTIONS = ("impratio", "cone", "timestep", "noslip_iterations")
+OPTIONS = ("impratio", "cone", "timestep", "noslip_iterations", "integrator")
 
 
 @dataclass(frozen=True)
@@ -228,10 +231,10 @@ def _limits(spec: Any, where: str) -> JointLimitSpec:
     spec = json_object(spec, where)
     values = {}
     for key in ("velocity", "acceleration", "jerk"):
-        value = require(spec, key, (int, float), where)
-        if not math.isfinite(value) or value <= 0:
+        value = float(require(spec, key, (int, float), where))  # finite: require refuses others
+        if value <= 0:
             raise DescriptionError(f"{where}.{key}: must be a finite positive number, got {value!r}")
-        values[key] = float(value)
+        values[key] = value
     return JointLimitSpec(**values)
 
 
@@ -303,8 +306,8 @@ def _gripper(value: Any, where: str) -> GripperSpec:
     sides = tuple(name_list(side, f"{where}.pads[{i}]") for i, side in enumerate(pads))
     if not all(sides):
         raise DescriptionError(f"{where}.pads: each side needs at least one geom")
-    still_speed = value.get("still_speed", GripperSpec.still_speed)
-    if isinstance(still_speed, bool) or not isinstance(still_speed, int | float) or not still_speed > 0:
+    still_speed = finite_number(value.get("still_speed", GripperSpec.still_speed), f"{where}.still_speed")
+    if not still_speed > 0:
         raise DescriptionError(f"{where}.still_speed: must be a number above 0, got {still_speed!r}")
     return GripperSpec(
         group=require(value, "group", str, where),
@@ -314,7 +317,7 @@ def _gripper(value: Any, where: str) -> GripperSpec:
         open=float(grasp_open),
         pads=(sides[0], sides[1]),
         limits=_limits(require(value, "limits", dict, where), f"{where}.limits"),
-        still_speed=float(still_speed),
+        still_speed=still_speed,
     )
 
 

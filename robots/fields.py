@@ -15,7 +15,37 @@ class DescriptionError(BesmanError):
 
 
 def require(mapping: dict[str, Any], key: str, kind: type | tuple[type, ...], where: str) -> Any:
-    return require_field(mapping, key, kind, where, DescriptionError)
+    """``mapping[key]`` of type ``kind``; a number must be finite (:func:`finite_number`)."""
+    value = require_field(mapping, key, kind, where, DescriptionError)
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        finite_number(value, f"{where}.{key}")
+    return value
+
+
+def finite_number(value: Any, where: str) -> float:
+    """``value`` as a float: a number (not a bool) that is finite and that a float holds (JSON reads
+    ``1e400`` as infinity, and ``1`` followed by 400 zeros as an int no float holds)."""
+    number = _float(value)
+    if number is None or not math.isfinite(number):
+        raise DescriptionError(f"{where}: expected a finite number, got {_shown(value)}")
+    return number
+
+
+def _float(value: Any) -> float | None:
+    """A number as a float (infinite where it overflows one), anything else None."""
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        return None
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf
+
+
+def _shown(value: Any) -> str:
+    """``value`` for a message: a number too long to read, by its digits."""
+    if isinstance(value, int) and abs(value) >= 10**20:
+        return f"a {len(str(abs(value)))}-digit number"
+    return repr(value)
 
 
 def name_list(value: Any, where: str) -> tuple[str, ...]:
@@ -27,15 +57,14 @@ def name_list(value: Any, where: str) -> tuple[str, ...]:
 
 
 def finite_numbers(value: Any, where: str, count: int | None = None) -> tuple[float, ...]:
-    if (
-        not isinstance(value, list)
-        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-        or not all(math.isfinite(v) for v in value)
-        or (count is not None and len(value) != count)
+    numbers = [_float(v) for v in value] if isinstance(value, list) else [None]
+    if not all(n is not None and math.isfinite(n) for n in numbers) or (
+        count is not None and len(numbers) != count
     ):
         size = f"{count} " if count is not None else ""
-        raise DescriptionError(f"{where}: expected a list of {size}finite numbers, got {value!r}")
-    return tuple(float(v) for v in value)
+        shown = f"[{', '.join(map(_shown, value))}]" if isinstance(value, list) else repr(value)
+        raise DescriptionError(f"{where}: expected a list of {size}finite numbers, got {shown}")
+    return tuple(numbers)
 
 
 def number_range(value: Any, where: str) -> tuple[float, float]:

@@ -12,8 +12,19 @@ import pytest
 from helpers import failed_placements
 from test_learning_pipeline import COMMITTED_POOL, SAME_FRAMES, SAME_REWARD, UNSEEN_TAUS, _learn
 
+from besman.learning.pipeline_refinement import input_box
 from besman.skills import SkillTemplatePool
 from besman.tasks.pick_place.blocks import BlockTask, BlockTaskConfig
+
+TAU_NAMES = ("hand_dx", "hand_dy", "hand_dz", "hand_turn")  # m, m, m, deg
+# The hand's planned moves, as far as the digits of another processor move them: measured between two
+# kinds of machine, 18 um and 0.0014 deg at most (2026-11-29).
+SAME_HAND_SHIFT, SAME_HAND_TURN = 1e-4, 0.01
+# deg: a box whose faces both fit the fingers is grasped across either pair, a quarter turn apart, and the
+# planner takes the grasp farthest from the joint limits; where two are (about) as far, the last digits
+# decide. Measured: one reach training task of 24 took the other grasp on another kind of machine, its
+# reward 0.031 away.
+GRASP_PERIOD = 90.0
 
 
 @pytest.fixture(scope="module")
@@ -34,8 +45,9 @@ def test_a_full_learn_on_the_shared_recordings_learns_what_the_committed_pool_le
     and CMA-ES carries that into other refined thetas. What every machine makes alike: the run's record
     (settings, the recordings' checksums), the templates and their training tasks (a seeded Latin hypercube),
     the blocks' instances in the recordings and the workspace map, the templates' inputs (the hand's planned
-    moves, to a micrometre and a microdegree); and what the learn achieves: every training task refined to
-    success, with the reward the committed pool got for it (to within SAME_REWARD)."""
+    moves, to SAME_HAND_SHIFT and SAME_HAND_TURN, the turn modulo a quarter: see GRASP_PERIOD); and what the
+    learn achieves: every training task refined to success, with the reward the committed pool got for it
+    (to within SAME_REWARD)."""
     record = json.loads((full_pool / "work" / "learn.json").read_text())
     assert len(record["recordings"]) == 15
     # The committed record was written before records named their task (pick-place, the only one then).
@@ -47,10 +59,13 @@ def test_a_full_learn_on_the_shared_recordings_learns_what_the_committed_pool_le
     assert sorted(learned) == sorted(committed) == ["carry", "reach", "return"]
     for name in learned:
         fresh, shipped = learned[name], committed[name]
-        np.testing.assert_allclose(fresh.taus, shipped.taus, atol=1e-6, err_msg=name)
-        np.testing.assert_allclose(fresh.box.low, shipped.box.low, atol=1e-5, err_msg=name)
-        np.testing.assert_allclose(fresh.box.high, shipped.box.high, atol=1e-5, err_msg=name)
-        assert fresh.box.names == shipped.box.names and fresh.thetas.shape == shipped.thetas.shape
+        assert (
+            fresh.box.names == shipped.box.names == TAU_NAMES and fresh.thetas.shape == shipped.thetas.shape
+        )
+        np.testing.assert_allclose(fresh.taus[:, :3], shipped.taus[:, :3], atol=SAME_HAND_SHIFT, err_msg=name)
+        turns = np.abs((fresh.taus[:, 3] - shipped.taus[:, 3] + 45.0) % GRASP_PERIOD - 45.0)
+        assert turns.max() < SAME_HAND_TURN, (name, turns)
+        assert fresh.box == input_box(TAU_NAMES, fresh.taus), name  # the taus' box, however they fell
         assert fresh.task == shipped.task == "pick-place/aila"
         facts, expected = fresh.provenance, shipped.provenance
         for key in ("robot", "recordings", "settings"):
