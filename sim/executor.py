@@ -303,7 +303,11 @@ class Executor:
                 motion.cycles += 1
                 result = motion.command(self)
                 if result not in WORKING:
-                    motion.finish(MotionStatus.FAILED, f"Ruckig could not compute a command ({result.name})")
+                    motion.finish(
+                        MotionStatus.FAILED,
+                        f"Ruckig could not compute a command for arm {self.name!r}: "
+                        + stream.refusal(self.arm.joints),
+                    )
                     break
                 commands.append(stream.state_lists())
                 if gripper_moves:

@@ -295,10 +295,12 @@ def plan_pick(
             missing.append((missed, leg))
         return not any(missed)
 
-    # Lifted as high as it passes; where no leg passes every check, the first that misses the least (the
-    # placement before the margin).
+    # Lifted as high as it passes and stays in every joint's range (a lift planned past a limit fails when it
+    # runs: seed 1102's by 0.075 rad, so it is kept only in case no lower one is); where no leg passes every
+    # check, the first that misses the least (the placement before the margin).
+    leg = None
     for lift in lifts:
-        leg = _first_within_range(
+        candidate = _first_within_range(
             plan_leg(
                 arm,
                 start,
@@ -314,8 +316,10 @@ def plan_pick(
             )
             for approach in _clearances(item, plan)
         )
-        if leg is not None:
+        if candidate is not None and candidate.clearance >= -OVERSHOOT:
+            leg = candidate
             break
+        leg = leg or candidate
     if leg is None and missing:
         leg = min(missing, key=lambda found: found[0])[1]
     if leg is None:

@@ -16,6 +16,9 @@ import numpy as np
 import ruckig
 
 WORKING = (ruckig.Result.Working, ruckig.Result.Finished)
+# s: the longest trajectory Ruckig computes; longer, it returns a result (-101) its Python binding cannot
+# name (a ValueError).
+LONGEST = 7.6e3
 
 
 class JerkLimitedStream:
@@ -147,10 +150,62 @@ class JerkLimitedStream:
         inputs, output = self._input, self._output
         try:
             result = self._otg.update(inputs, output)
-        except (
-            ruckig.RuckigError
-        ):  # raised for inputs it rejects: the caller fails the motion, nothing crashes
+        except ruckig.RuckigError:  # raised for inputs it rejects: the caller fails the motion (refusal)
             return ruckig.Result.ErrorInvalidInput
+        except ValueError:  # a trajectory longer than LONGEST
+            return ruckig.Result.ErrorExecutionTimeCalculation
         if result in WORKING:
             output.pass_to_input(inputs)
         return result
+
+    def refusal(self, joints) -> str:
+        """Why Ruckig refused the last update (named by ``joints``), found by checking its input against the
+        range and the limits: the first joint whose input breaks one, with its numbers, and what to change."""
+        inputs = self._input
+        current = self.state()
+        targets = ()
+        if inputs.control_interface == ruckig.ControlInterface.Position:
+            targets = tuple(
+                np.array(values, float)
+                for values in (inputs.target_position, inputs.target_velocity, inputs.target_acceleration)
+            )
+        kinds = ("position", "velocity", "acceleration")
+        states = [(f"target {kind}", values) for kind, values in zip(kinds, targets, strict=False)]
+        states += [(f"current {kind}", values) for kind, values in zip(kinds, current, strict=True)]
+        # The targets first: Ruckig brings a current state beyond the limits back, it refuses such targets.
+        for what, values in states:
+            change = "the motion's target" if what.startswith("target") else "the arm's commanded state"
+            broken = np.flatnonzero(~np.isfinite(values))
+            if broken.size:
+                k = int(broken[0])
+                return f"joint {joints[k]}'s {what} is {values[k]} (not a number): {change} is broken"
+        limits = {"velocity": self.max_velocity, "acceleration": self.max_acceleration}
+        for what, values in states:
+            change = "the motion's target" if what.startswith("target") else "the arm's commanded state"
+            kind = what.split()[1]
+            if kind == "position":
+                outside = np.maximum(self.lower - values, values - self.upper)
+                k = int(outside.argmax())
+                if outside[k] > 1e-9:
+                    return (
+                        f"joint {joints[k]}'s {what} {values[k]:.4g} is outside its range "
+                        f"[{self.lower[k]:.4g}, {self.upper[k]:.4g}]: {change} is wrong"
+                    )
+                continue
+            over = np.abs(values) / limits[kind]
+            k = int(over.argmax())
+            if over[k] > 1 + 1e-9:
+                return (
+                    f"joint {joints[k]}'s {what} {values[k]:.4g} is beyond its limit {limits[kind][k]:.4g}: "
+                    f"{change} or the robot description's limits are wrong"
+                )
+        # Nothing out of bounds: the limits make the move too long for Ruckig (e.g. given in wrong units).
+        distance = np.abs(targets[0] - current[0]) if targets else np.zeros(self.dofs)
+        lasts = distance / self.max_velocity + np.abs(current[1]) / self.max_acceleration
+        k = int(lasts.argmax())
+        return (
+            f"joint {joints[k]}'s limits (velocity {self.max_velocity[k]:.4g}, acceleration "
+            f"{self.max_acceleration[k]:.4g}, jerk {self.max_jerk[k]:.4g}; rad or m, per s, s^2, s^3) make "
+            f"its move of {distance[k]:.4g} last at least {lasts[k]:.4g} s (Ruckig plans at most "
+            f"{LONGEST:g} s): check the limits in the robot's description"
+        )

@@ -3,10 +3,13 @@ with its first arm (default tree ``stack.yaml``: one subtree in a loop over the 
 ``/task/objects``, each item a box and where it goes: x, y, yaw 0 and the height of the top it is set down
 on).
 
-- **Randomised**: tau = ``spot`` (x, y of the stack on the table, m, in the robot's spot area,
-  :data:`LAYOUTS`) and ``order`` (which box goes where, bottom to top: one of the six orders of
-  :data:`ORDERS`, 0-5); the seed also moves each box's start (the robot's three, :data:`LAYOUTS`) by up to
-  :data:`JITTER` in x and y. Without a seed: the middle of the spot area, order 0 and seed 0's draws.
+- **Randomised**: tau = ``spot`` (x, y of the stack on the table, m, in the robot's spot area: the
+  built-in robots' :data:`LAYOUTS`; a brought robot's description section ``"tasks": {"stack": {"spot":
+  {"x": [x0, x1], "y": [y0, y1]}, "starts": [[x, y], [x, y], [x, y]]}}`` (starts: red, green, blue), or
+  without one, the corners of its ``tabletop.reach``, :func:`derived`) and ``order`` (which box goes where,
+  bottom to top: one of the six orders of :data:`ORDERS`, 0-5); the seed also moves each box's start (the
+  robot's three) by up to :data:`JITTER` in x and y. Without a seed: the middle of the spot area, order 0
+  and seed 0's draws.
 - **Success**: after the tree, the stack stands: for :data:`STANDING_TIME` (2 s) of simulation every box
   stays within :data:`TOLERANCE` (1 cm) of the spot in x and y, and at the end each box is at its level
   (within 1 cm of its height in a stack of 6 cm boxes).
@@ -24,7 +27,6 @@ import numpy as np
 from besman.skills.seeds import child_seed
 from besman.skills.tasks import TaskBounds
 from besman.tasks.base import Scene, Task, TaskValue
-from besman.tasks.pick_place import one_hand_tabletop
 
 BOXES = {"red": (0.80, 0.15, 0.12, 1.0), "green": (0.20, 0.62, 0.25, 1.0), "blue": (0.15, 0.35, 0.80, 1.0)}
 ORDERS = tuple(itertools.permutations(BOXES))  # bottom to top
@@ -52,6 +54,12 @@ LAYOUTS = {
     "ur5e": StackLayout(((0.38, 0.47), (-0.20, -0.17)), ((0.38, -0.04), (0.52, -0.04), (0.60, -0.14))),
     "openarm": StackLayout(((0.15, 0.18), (-0.21, -0.18)), ((0.29, -0.21), (0.15, -0.05), (0.29, -0.05))),
 }
+# A brought robot's stack without a section of its own (derived): the three boxes and the spot in the four
+# corners of the area its first arm reaches, at least 12 cm apart (the open fingers keep clear of the
+# neighbours, as in sort), the spot drawn in a 2 cm square (on the WidowX AI the boxes' 13 cm apart, the
+# spot 11-13 cm from the nearest).
+DERIVED_SIDE = 0.12
+DERIVED_SPOT = 0.02
 JITTER = 0.005  # m a seed moves each box's start by, at most, in x and in y
 # m added per level to the top a box is set down on: a box on a box stands a little higher than 6 cm a
 # level (a tilt, the contacts), and the fingers that set the next one down come within a few mm of it.
@@ -81,7 +89,8 @@ class Stack(Task):
     max_sim_time = 240.0
 
     def fits(self, robot) -> bool:
-        return robot.name in LAYOUTS and one_hand_tabletop(robot)
+        arms = list(robot.arms.values())
+        return bool(arms) and arms[0].gripper is not None and _layout(str(robot.folder)) is not None
 
     def bounds(self, robot: str) -> TaskBounds:
         (x0, x1), (y0, y1) = _layout(robot).spots
@@ -154,10 +163,48 @@ class Stack(Task):
         return {"orders": [list(order) for order in ORDERS]}
 
 
-def _layout(robot: str) -> StackLayout:
+def _layout(robot: str) -> StackLayout | None:
+    """``robot``'s stack: :data:`LAYOUTS`' by its name, its description's ``tasks.stack`` section or, for a
+    brought robot with a tabletop and neither, one in the area its first arm reaches (:func:`derived`);
+    None where it has no tabletop (or an area too small for one)."""
     import besman.robots as robots
 
-    return LAYOUTS[robots.describe(robot).name]
+    found = Stack().robot_numbers(robot, LAYOUTS, _read_layout)
+    if found is not None:
+        return found
+    tabletop = robots.describe(robot).tabletop
+    return None if tabletop is None else derived(tabletop)
+
+
+def derived(tabletop) -> StackLayout | None:
+    """A stack in the corners of the area the first arm reaches (``tabletop.reach``): the spot in the corner
+    farthest from the shelf (a :data:`DERIVED_SPOT` square), a box in each other corner; None where a side
+    of the area is shorter than :data:`DERIVED_SIDE`."""
+    (x0, x1), (y0, y1) = tabletop.reach
+    if min(x1 - x0, y1 - y0) < DERIVED_SIDE:
+        return None
+    shelf = np.array([sum(tabletop.shelf.x) / 2, sum(tabletop.shelf.y) / 2])
+    corners = [(x, y) for x in (x0, x1) for y in (y0, y1)]
+    spot = max(corners, key=lambda corner: float(np.linalg.norm(np.subtract(corner, shelf))))
+    inner = np.round(spot + np.sign(np.array([x0 + x1, y0 + y1]) / 2 - spot) * DERIVED_SPOT, 4)
+    spots = tuple((float(min(a, b)), float(max(a, b))) for a, b in zip(spot, inner, strict=True))
+    return StackLayout(spots, tuple(corner for corner in corners if corner != spot))
+
+
+def _read_layout(value: dict, where: str, tabletop) -> StackLayout:
+    """A description's ``tasks.stack``: ``{"spot": {"x": [x0, x1], "y": [y0, y1]}, "starts": [[x, y] x 3]}``
+    (m, on the table)."""
+    from besman.robots.fields import DescriptionError, finite_numbers
+    from besman.robots.tabletop import read_area, section
+
+    given = section(value, where, ("spot",), ("starts",))  # starts: a list, checked here
+    spots = read_area(given["spot"], f"{where}.spot", None if tabletop is None else tabletop.table)
+    starts = given.get("starts")
+    if not isinstance(starts, list) or len(starts) != len(BOXES):
+        raise DescriptionError(f"{where}.starts: expected {len(BOXES)} [x, y] (where the boxes start)")
+    return StackLayout(
+        spots, tuple(finite_numbers(start, f"{where}.starts[{k}]", 2) for k, start in enumerate(starts))
+    )
 
 
 TASKS = (Stack(),)
