@@ -11,11 +11,13 @@ import argparse
 import os
 import sys
 import time
+import warnings
 from collections.abc import Iterator, Sequence
 
 from besman import stopped
 from besman._version import __version__
 from besman.commands import datasets, examples, learning, pool, recordings, robots, tasks, trees, viewing
+from besman.skills.errors import PluginWarning
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -49,7 +51,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not hasattr(args, "handler"):
             parser.print_help(sys.stderr)
             return 2
-        return args.handler(args)
+        with warnings.catch_warnings():  # restores Python's display after (main runs many times in tests)
+            warnings.showwarning = _one_line(warnings.showwarning)
+            return args.handler(args)
     except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (besman.main)
         return stopped(_kept(args, started))
     except ImportError as error:
@@ -60,6 +64,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)
         return 2
+
+
+def _one_line(show):
+    """Python's warning display, but a besman plugin's warning as one line like its errors (without the
+    file and source line of the code that warned: the message names the plugin)."""
+
+    def display(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, PluginWarning):
+            print(f"besman: warning: {message}", file=sys.stderr if file is None else file)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return display
 
 
 def interrupted(error: BaseException) -> bool:

@@ -44,6 +44,12 @@ EXACT_UP_TO = 1200  # samples (a minute at 20 Hz): exact inference's evidences t
 # 190 MB with the grip); beyond, pruned inference is linear in T
 AUTO_PARTICLES = 50  # beyond that: as close to exact as the benchmark shows (F1 unchanged), linear in T
 STILL_SPEED = 1e-3  # m/s: a marker never faster than this has not moved
+# A demonstrating hand reaches most of a metre from the capture's origin and peaks at 1-2 m/s (the shared
+# recordings: 0.77 m and 0.9 m/s at least); a recording in metres read as millimetres is a thousand times
+# nearer and slower: within a few mm of the origin, at 1-2 mm/s. A hand held still moves that little too,
+# but is as far away as ever (and a synthetic one at the origin has noise faster than that).
+NEAR_ORIGIN = 0.01  # m
+MIN_PEAK_SPEED = 0.02  # m/s
 # The hyperparameters chosen by marginal likelihood: the mean segment length beyond the minimum (s) and the
 # weight of a hold model over a movement model. Both change only the priors, not the segment evidences, so
 # trying them all costs one forward recursion each.
@@ -168,17 +174,25 @@ def segment(
     signal_times, values = resample(
         demo.times, smoothed.velocities if signal == "velocity" else smoothed.speed, rate
     )
-    if not np.max(smoothed.speed) >= STILL_SPEED:  # constant positions make every segment model singular
-        raise DemonstrationError(
-            f"{demo.source or 'demonstration'}: marker {marker!r} does not move "
-            f"(below {1000 * STILL_SPEED:g} mm/s throughout); there is nothing to segment"
-        )
     base = prior if isinstance(prior, SegmentationPrior) else SegmentationPrior()
     minimum = samples(base.min_length, rate)
     if len(values) < 2 * minimum:
         raise DemonstrationError(
             f"{demo.source or 'demonstration'}: the recording lasts {demo.duration:.2f} s, shorter than two "
             f"segments of the minimum length {base.min_length:g} s"
+        )
+    farthest = float(np.max(np.linalg.norm(smoothed.positions, axis=1)))
+    peak = float(np.max(smoothed.speed))
+    if farthest < NEAR_ORIGIN and peak < MIN_PEAK_SPEED:
+        raise DemonstrationError(
+            f"{demo.source or 'demonstration'}: marker {marker!r} stays within {1000 * farthest:.1f} mm of "
+            f"the origin and moves at most {1000 * peak:.1f} mm/s over {demo.duration:.0f} s: is the "
+            "recording in metres? besman reads a .tsv in millimetres"
+        )
+    if not np.max(smoothed.speed) >= STILL_SPEED:  # constant positions make every segment model singular
+        raise DemonstrationError(
+            f"{demo.source or 'demonstration'}: marker {marker!r} does not move "
+            f"(below {1000 * STILL_SPEED:g} mm/s throughout); there is nothing to segment"
         )
     if contact:
         hand = values if signal == "velocity" else resample(demo.times, smoothed.velocities, rate)[1]

@@ -23,3 +23,8 @@ class UnknownNameError(InputError, KeyError):
     ones. Also a ``KeyError``, as a failed lookup by name."""
 
     __str__ = Exception.__str__  # the message as written (a KeyError would quote it)
+
+
+class PluginWarning(UserWarning):
+    """An installed plugin (another distribution's entry point) that besman leaves out; the message names
+    the distribution and why. The command line prints it as one line."""

@@ -13,10 +13,11 @@ two files per template:
 Nothing is pickled: a template is rebuilt from its training data and stored hyperparameters (the models
 are refitted with their hyperparameters given, which reproduces their predictions exactly). Schema
 version 2 added the model; version 1 entries (all per-dimension) are still read. Writes go through temporary
-files and renames (arrays first, manifest last) under an exclusive lock on ``DIR/.lock``; reads hold a
-shared lock, so two writers, or a writer and a reader, never see half an entry. An entry that is truncated,
-tampered with (its arrays no longer match the manifest's checksum), of another schema version or not a
-template at all is refused with a :class:`PoolError` that names its file; the other entries stay readable.
+files and renames (arrays first, manifest last) under an exclusive ``flock`` on the directory; reads hold
+a shared one (and write nothing into it), so two writers, or a writer and a reader, never see half an
+entry. An entry that is truncated, tampered with (its arrays no longer match the manifest's checksum), of
+another schema version or not a template at all is refused with a :class:`PoolError` that names its file;
+the other entries stay readable.
 
 The pool is a ``Mapping[str, SkillTemplate]``, so the behaviour-tree leaf ``InstantiateSkillTemplate``
 takes it as ``pool=`` and tree files name it by its directory.
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import fcntl
 import json
+import os
 import re
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -184,21 +186,21 @@ class SkillTemplatePool(Mapping[str, SkillTemplate]):
 
     @contextmanager
     def _lock(self, *, shared: bool):
-        if not self.directory.is_dir():
-            raise PoolError(f"{self.directory}: no such pool directory")
+        """A shared (reads) or exclusive (writes) ``flock`` on the directory itself: a read writes nothing
+        into the user's folder and works on a pool nobody here may write (e.g. installed with the package)."""
         try:
-            lock = open(self.directory / ".lock", "a+b")  # noqa: SIM115 (closed below)
+            descriptor = os.open(self.directory, os.O_RDONLY | os.O_DIRECTORY)
+        except (FileNotFoundError, NotADirectoryError):
+            raise PoolError(f"{self.directory}: no such pool directory") from None
         except PermissionError:
-            if not shared:
-                raise PoolError(f"{self.directory}: the pool is read-only here") from None
-            yield  # a pool nobody here may write (e.g. installed with the package) needs no lock to read
-            return
-        with lock:
-            fcntl.flock(lock, fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
-            try:
-                yield
-            finally:
-                fcntl.flock(lock, fcntl.LOCK_UN)
+            raise PoolError(f"{self.directory}: the pool's directory may not be read here") from None
+        try:
+            if not shared and not os.access(self.directory, os.W_OK):
+                raise PoolError(f"{self.directory}: the pool is read-only here")
+            fcntl.flock(descriptor, fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
+            yield
+        finally:
+            os.close(descriptor)  # which releases the lock
 
     def _read(self, name: str, manifest: Path) -> SkillTemplate:
         where = str(manifest)

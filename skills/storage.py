@@ -19,6 +19,7 @@ import json
 import os
 import re
 import stat
+import sys
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -211,8 +212,8 @@ def check_replaceable(path: str | Path, option: str, kind: str | None = None) ->
     with open_file(path, 1 << 62, what=kind.replace("-", " ")) as file:  # only the first line is read
         first = file.readline(JSON_BYTES)
     try:
-        header = json.loads(first.decode("utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError):
+        header = json_value(first, str(path))
+    except InputError:
         header = None
     if not isinstance(header, dict) or header.get("kind") != kind:
         raise InputError(
@@ -241,14 +242,24 @@ def read_json(
 ) -> Any:
     """The JSON object (or, with ``top=list``, list) in ``path``, a regular file of at most ``max_bytes``;
     ``error`` names the file if it is missing, special, too large or malformed (``what`` names its kind)."""
-    data = read_bytes(path, max_bytes, what=what, error=error)
-    try:
-        value = json.loads(data.decode("utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as problem:
-        raise error(f"{path}: not valid JSON ({problem})") from None
+    value = json_value(read_bytes(path, max_bytes, what=what, error=error), str(path), error)
     if not isinstance(value, top):
         raise error(f"{path}: expected a JSON {'object' if top is dict else 'list'} at the top level")
     return value
+
+
+def json_value(data: bytes, where: str, error: type[BesmanError] = InputError) -> Any:
+    """The JSON value of ``data``; ``error`` names ``where`` if it is not JSON that Python reads: malformed,
+    not UTF-8, an integer longer than Python converts (4300 digits) or nesting deeper than its stack."""
+    try:
+        return json.loads(data.decode("utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as problem:
+        raise error(f"{where}: not valid JSON ({problem})") from None
+    except ValueError:  # the only other ValueError of json.loads: int() refusing too many digits
+        limit = sys.get_int_max_str_digits()
+        raise error(f"{where}: not JSON besman reads (an integer of more than {limit} digits)") from None
+    except RecursionError:
+        raise error(f"{where}: not JSON besman reads (lists or objects nested too deeply)") from None
 
 
 def check_schema_version(

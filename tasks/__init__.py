@@ -6,7 +6,9 @@ the one rule that judges a run (demos, ``besman run``, learning rewards and benc
 evaluate for policy search; and the building blocks it learns. :data:`TASKS` holds every task of this
 package - a module that defines ``TASKS`` (a tuple of tasks) is registered as it is added, so adding a task
 is adding its module - and those of installed distributions that name a module with ``TASKS`` under the
-entry point group ``besman.tasks`` (the documentation's "Add a task" page). A demo is a task run with its
+entry point group ``besman.tasks`` (the documentation's "Add a task" page); a plugin that does not load, or
+a task of one whose name is taken (besman's own tasks keep theirs), is left out with a
+:class:`~besman.skills.errors.PluginWarning` naming its distribution. A demo is a task run with its
 default tree and a seed (:mod:`besman.tasks.running`); a run recorded as a dataset's episode is
 :mod:`besman.tasks.recording`'s.
 
@@ -17,9 +19,12 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import warnings
+from collections.abc import Iterator
 from importlib.metadata import entry_points
+from types import ModuleType
 
-from besman.skills.errors import UnknownNameError
+from besman.skills.errors import PluginWarning, UnknownNameError
 from besman.tasks.base import Task
 
 DEFAULT = "pick-place"  # the task of ``besman demo`` without a name, and of ``besman learn``
@@ -30,23 +35,62 @@ FRAMEWORK = ("base", "environment", "frames", "recording", "robot_check", "runni
 ENTRY_POINTS = "besman.tasks"  # the group under which other distributions name their task modules
 
 
-def _modules():
-    """The task modules: this package's, then those other distributions name (:data:`ENTRY_POINTS`)."""
+def _builtin() -> Iterator[ModuleType]:
+    """This package's task modules."""
     for module in pkgutil.iter_modules(__path__):
         if module.name not in FRAMEWORK:
             yield importlib.import_module(f"{__name__}.{module.name}")
+
+
+def _plugins() -> Iterator[tuple[str, tuple[Task, ...]]]:
+    """(who, tasks) of each module that other distributions name (:data:`ENTRY_POINTS`). One that does not
+    import or whose ``TASKS`` is not a tuple of tasks is named in a :class:`PluginWarning` and left out: one
+    broken installed package must not take every task command down with it."""
     for point in entry_points(group=ENTRY_POINTS):
-        yield point.load()
+        who = f"the task plugin {point.name!r} of {_distribution(point)}"
+        try:
+            entries = tuple(getattr(point.load(), "TASKS", ()))
+        except Exception as error:  # whatever its import raises (a missing dependency, a syntax error...)
+            _warn(f"{who} is left out: loading {point.value} raised {type(error).__name__}: {error}")
+            continue
+        wrong = [
+            e for e in entries if not (isinstance(e, Task) and isinstance(getattr(e, "name", None), str))
+        ]
+        if wrong:
+            _warn(
+                f"{who} is left out: {point.value}.TASKS holds {wrong[0]!r}, which is not a named besman task"
+            )
+            continue
+        yield who, entries
+
+
+def _distribution(point) -> str:
+    dist = point.dist
+    return "an unknown distribution" if dist is None else f"the distribution {dist.name} {dist.version}"
+
+
+def _warn(message: str) -> None:
+    # One line: the first of a multi-line exception message says what went wrong.
+    warnings.warn(message.splitlines()[0], PluginWarning, stacklevel=2)
 
 
 def _registered() -> dict[str, Task]:
     found: dict[str, Task] = {}
-    for module in _modules():
+    for module in _builtin():
         for entry in getattr(module, "TASKS", ()):
             for name in (entry.name, *entry.aliases):
                 if name in found:
                     raise RuntimeError(f"two tasks are called {name!r}: {found[name]!r} and {entry!r}")
                 found[name] = entry
+    for who, entries in _plugins():
+        for entry in entries:
+            names = (entry.name, *entry.aliases)
+            taken = next((name for name in names if name in found), None)
+            if taken is not None:  # what is registered first (besman's own tasks) keeps its name
+                owner = type(found[taken]).__module__
+                _warn(f"{who}: its task {taken!r} is left out: {owner} already has a task called {taken!r}")
+                continue
+            found.update(dict.fromkeys(names, entry))
     return found
 
 

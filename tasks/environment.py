@@ -27,6 +27,7 @@ or ``gymnasium.make("besman/pick-place")`` (:func:`register_environments`).
 
 from __future__ import annotations
 
+import reprlib
 from typing import ClassVar
 
 import mujoco
@@ -120,19 +121,27 @@ class TaskEnv(gymnasium.Env):
     # -- Gymnasium -----------------------------------------------------------------------------------------
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        given = _given_values(options)
         super().reset(seed=seed)
         # The seed is the task's (besman run --seed's scene); later resets draw theirs from it.
         drawn = seed if seed is not None else int(self.np_random.integers(2**31))
-        given = dict((options or {}).get("values", {}))
         if self.camera is not None:
             self.camera.close()
         self._build(self.task.resolve(self.robot, given, drawn), drawn)
         return self._observation(), self._info()
 
     def step(self, action):
-        action = np.asarray(action, dtype=np.float64)
-        if action.shape != self.action_space.shape or not np.isfinite(action).all():
-            raise InputError(f"an action is {self.action_space.shape[0]} finite numbers, got {action.shape}")
+        size = self.action_space.shape[0]
+        try:
+            action = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError(f"an action is {size} finite numbers, got {reprlib.repr(action)}") from None
+        if action.shape != self.action_space.shape:
+            raise InputError(f"an action is {size} finite numbers, got shape {action.shape}")
+        broken = np.flatnonzero(~np.isfinite(action))
+        if broken.size:
+            entries = ", ".join(f"[{i}] = {action[i]}" for i in broken)
+            raise InputError(f"an action is {size} finite numbers; not finite: {entries}")
         if self.control == "throw":
             return self._throw(action)
         info = {}
@@ -210,6 +219,26 @@ class TaskEnv(gymnasium.Env):
         if self.camera is not None:
             self.camera.close()
             self.camera = None
+
+
+def _given_values(options) -> dict:
+    """The task values that :meth:`TaskEnv.reset`'s ``options`` give (``{"values": {NAME: numbers}}``)."""
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise InputError(
+            f'reset options: expected a dict such as {{"values": {{...}}}}, got {reprlib.repr(options)}'
+        )
+    unknown = sorted(set(options) - {"values"}, key=str)
+    if unknown:
+        raise InputError(f"reset options: unknown option {unknown[0]!r}; the one option is 'values'")
+    values = options.get("values", {})
+    if not isinstance(values, dict):
+        raise InputError(
+            f'reset options["values"]: expected a dict of task values, named as --set names them '
+            f'({{"object": [x, y]}}), got {reprlib.repr(values)}'
+        )
+    return dict(values)
 
 
 def register_environments() -> list[str]:

@@ -78,7 +78,7 @@ def failed_placements(pool: Path, taus, robot: str = "aila", tree: Path = LEARNE
 
 def is_whole(path: Path) -> bool:
     """Whether a file that besman writes is complete: JSON that parses, NPZ whose arrays all read (zip
-    checksums), PNG that ends with its IEND chunk, a pool's empty lock file."""
+    checksums), PNG that ends with its IEND chunk."""
     data = path.read_bytes()
     try:
         if path.suffix == ".json":
@@ -87,8 +87,6 @@ def is_whole(path: Path) -> bool:
             with np.load(path, allow_pickle=False) as arrays:
                 for name in arrays.files:
                     arrays[name]
-        elif path.name == ".lock":
-            return data == b""  # a pool's lock file: it holds nothing
         elif path.suffix == ".png":
             return data.startswith(b"\x89PNG\r\n\x1a\n") and data.endswith(b"IEND\xaeB`\x82")
         else:

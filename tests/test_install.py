@@ -43,7 +43,7 @@ class Installed:
             REPO,
             source,
             ignore=shutil.ignore_patterns(
-                ".git", "build", "dist", "site", "*.egg-info", "__pycache__", ".*cache", ".lock"
+                ".git", "build", "dist", "site", "*.egg-info", "__pycache__", ".*cache"
             ),
         )
         dist = root / "dist"

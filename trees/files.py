@@ -31,9 +31,9 @@ never makes anything import (:mod:`besman.trees.registry`). Leaves with blackboa
 and ``remap`` (role -> key).
 
 :func:`load_tree` checks the whole file first - unknown node types, missing or mistyped parameters, missing
-files, cycles of includes - and reports the file, line and path of the first problem (:class:`TreeFileError`).
-:func:`check_tree` does the same without importing any module. :func:`describe` and :func:`dump_tree` turn a
-tree back into the same format, so a file round-trips.
+files, cycles of includes, includes or trees too deep - and reports the file, line and path of the first
+problem (:class:`TreeFileError`). :func:`check_tree` does the same without importing any module.
+:func:`describe` and :func:`dump_tree` turn a tree back into the same format, so a file round-trips.
 """
 
 from __future__ import annotations
@@ -62,6 +62,10 @@ ROBOT_FIELD = "{robot}"  # in a pool's path: the name of the robot the tree is b
 # and refuse what would hang or exhaust memory (deep nesting overflows Python's stack).
 MAX_FILE_BYTES = 1_000_000
 MAX_NESTING = 200  # YAML levels (a tree level takes about four)
+# Across includes, where no one file's nesting bounds them: files included within one another, and the
+# tree's levels (building, ticking and describing a tree take a few frames of Python's stack a level).
+MAX_INCLUDES = 32
+MAX_DEPTH = 100
 
 
 class TreeFileError(BesmanError):
@@ -141,6 +145,7 @@ class _Builder:
         self.tasks = None if tasks is None else tuple(tasks)  # the names a file's task may have (None: any)
         self.robot = robot  # the robot's name that replaces {robot} in pool paths
         self.unimported: list[str] = []  # the references left to import (not self.imports)
+        self.depth = 0  # the levels of the node being built, counted through includes
 
     def file(self, path: Path, remap: Mapping[str, str], stack: tuple[Path, ...]):
         resolved = path.resolve()
@@ -244,6 +249,17 @@ class _Builder:
     # -- nodes ---------------------------------------------------------------------------------------------
 
     def node(self, node, path: Path, where: str, remap: Mapping[str, str], stack: tuple[Path, ...]):
+        self.depth += 1
+        try:
+            if self.depth > MAX_DEPTH:
+                raise self._error(
+                    node, path, where, f"the tree is deeper than {MAX_DEPTH} levels (with its included files)"
+                )
+            return self._node(node, path, where, remap, stack)
+        finally:
+            self.depth -= 1
+
+    def _node(self, node, path: Path, where: str, remap: Mapping[str, str], stack: tuple[Path, ...]):
         entries = self._mapping(node, path, where)
         if "include" in entries:
             return self.include(entries, node, path, where, remap, stack)
@@ -334,6 +350,13 @@ class _Builder:
             }
         if not target.exists():
             raise self._error(entries["include"], path, f"{where}.include", f"no such file {target}")
+        if len(stack) >= MAX_INCLUDES:
+            raise self._error(
+                entries["include"],
+                path,
+                f"{where}.include",
+                f"files included deeper than {MAX_INCLUDES} levels",
+            )
         behaviour = self.file(target, inner, stack)
         behaviour.besman_include = {"include": str(target), "remap": inner}
         return behaviour

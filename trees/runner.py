@@ -45,6 +45,7 @@ from besman.skills.reading import Limit, read_bytes
 from besman.skills.storage import (
     check_replaceable,
     check_schema_version,
+    json_value,
     open_temporary,
     put_in_place,
     remove_temporaries,
@@ -373,10 +374,7 @@ def read_log(path: str | Path, *, max_bytes: int | None = None) -> tuple[dict, l
     records = []
     lines = (line for line in io.BytesIO(data) if line.strip())  # one at a time: no second copy of the log
     for number, line in enumerate(lines, 1):
-        try:
-            records.append(json.loads(line))
-        except (json.JSONDecodeError, UnicodeDecodeError) as error:
-            raise InputError(f"{path}:{number}: not JSON ({error})") from None
+        records.append(json_value(line, f"{path}:{number}"))
     if not records or records[0].get("kind") != LOG_KIND:
         raise InputError(f"{path}:1: not a besman run log")
     check_schema_version(records[0], SCHEMA_VERSION, f"{path}:1")

@@ -14,6 +14,7 @@ def _examples(args: argparse.Namespace) -> int:
     import tempfile
 
     from besman import examples
+    from besman.skills.storage import WriteError, write_error
 
     source = examples.path()
     if args.copy is None:
@@ -29,13 +30,28 @@ def _examples(args: argparse.Namespace) -> int:
     folder.mkdir(parents=True, exist_ok=True)
     # Copied beside the target first and renamed into place: a copy is whole or absent.
     staging = Path(tempfile.mkdtemp(dir=folder, prefix=".examples."))
+
+    def copy(file: str, copied: str) -> None:
+        # The first file that cannot be written stops the copy, named at its place in the target
+        # (copytree would go on, filling a full disk, and then name every file in one huge error).
+        try:
+            shutil.copy2(file, copied)
+        except OSError as error:
+            raise write_error(target / Path(copied).relative_to(staging), error) from None
+
     try:
         for part in examples.CONTENTS:
-            shutil.copytree(source / part, staging / part, ignore=shutil.ignore_patterns(".*", "__*"))
+            shutil.copytree(
+                source / part, staging / part, ignore=shutil.ignore_patterns(".*", "__*"), copy_function=copy
+            )
         os.rename(staging, target)
-    except BaseException:
+    except shutil.Error as error:  # a folder that could not be made (copytree collects those)
+        _, copied, reason = error.args[0][0]
+        raise WriteError(
+            f"{target / Path(copied).relative_to(staging)}: cannot write it ({reason})"
+        ) from None
+    finally:
         shutil.rmtree(staging, ignore_errors=True)
-        raise
     print(target)
     return 0
 
