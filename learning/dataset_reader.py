@@ -5,6 +5,7 @@ file and the field."""
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,11 +16,14 @@ import pyarrow.parquet as pq
 
 from besman.learning import dataset_format as fmt
 from besman.skills.errors import BesmanError
+from besman.skills.reading import open_file
 from besman.skills.storage import read_json
+from besman.skills.validation import shown
 
 # The episodes table's columns that LeRobot defines; any other (``besman/seed``) is a fact of the episode.
 LEROBOT_COLUMNS = ("episode_index", "tasks", "length", "dataset_from_index", "dataset_to_index")
 LEROBOT_PREFIXES = ("data/", "videos/", "stats/", "meta/")
+ANY_SIZE = 1 << 62  # a dataset's files are as large as their author made them; pyarrow reads what it needs
 
 
 class DatasetError(BesmanError):
@@ -52,14 +56,12 @@ class LeRobotDataset:
 
     def frames(self, episode: int) -> dict[str, np.ndarray]:
         """The episode's frames: every column of the data (its own features and the defaults) as (T,) or
-        (T, n) values of the feature's dtype, in frame order."""
+        (T, n) values of the feature's dtype, in frame order; each column of the type and width that its
+        feature declares, and finite."""
         if not 0 <= episode < len(self.episodes):
             raise DatasetError(f"{self.root}: no episode {episode} (it has {len(self.episodes)})")
         row = self.episodes[episode]
-        relative = self.info["data_path"].format(
-            chunk_index=row["data/chunk_index"], file_index=row["data/file_index"]
-        )
-        path = self.root / relative
+        path = _data_file(self.root, row)
         try:
             status = path.stat()
         except FileNotFoundError:
@@ -75,59 +77,95 @@ class LeRobotDataset:
             if fmt.is_video(feature):
                 continue
             if name not in rows.column_names:
-                raise DatasetError(f"{self.root / relative}: no column {name!r}, a feature of info.json")
-            columns[name] = fmt.values(rows[name], feature)
+                raise DatasetError(f"{path}: no column {name!r}, a feature of info.json")
+            kind, wanted = rows.schema.field(name).type, fmt.arrow_type(feature)
+            if _base_and_width(kind) != _base_and_width(wanted):
+                raise DatasetError(
+                    f"{path}: column {name!r} holds {kind}, info.json declares {feature['dtype']} of shape "
+                    f"{feature['shape']}"
+                )
+            columns[name] = found = fmt.values(rows[name], feature)
+            if found.dtype.kind == "f" and not np.isfinite(found).all():
+                raise DatasetError(
+                    f"{path}: episode {episode}'s {name} has values that are not finite (NaN or infinite)"
+                )
         order = np.argsort(columns["frame_index"], kind="stable")
         return {name: values[order] for name, values in columns.items()}
+
+
+def _data_file(root: Path, row: dict) -> Path:
+    """The data file of the episode of ``row`` (its indices checked)."""
+    return root / fmt.DATA_PATH.format(chunk_index=row["data/chunk_index"], file_index=row["data/file_index"])
+
+
+def _base_and_width(kind: pa.DataType) -> tuple[pa.DataType, int]:
+    """A column type's scalar type and its width (1 for a scalar; a list's item name does not matter)."""
+    if pa.types.is_fixed_size_list(kind):
+        return kind.value_type, kind.list_size
+    return kind, 1
+
+
+def read_parquet(path: Path, what: str, read=pq.read_table):
+    """``read`` (pyarrow's ``read_table`` or another function of an open file) applied to the parquet file
+    at ``path``, opened only once it is known to be a regular file (pyarrow would block on a FIFO for ever
+    and read ``/dev/zero`` without end); any problem is a :class:`DatasetError` naming the file (``what``
+    names its kind)."""
+    with open_file(path, ANY_SIZE, what=what, error=DatasetError) as file:
+        try:
+            return read(file)
+        except (OSError, pa.ArrowException) as error:
+            raise DatasetError(f"{path}: cannot read it as parquet ({error})") from None
 
 
 @functools.lru_cache(maxsize=4)
 def _data_table(path: Path, inode: int, modified: int) -> pa.Table:
     """A data file, read once while it is the same file (an append puts a new one in its place)."""
-    try:
-        return pq.read_table(path)
-    except (OSError, pa.ArrowInvalid) as error:
-        raise DatasetError(f"{path}: cannot read it as parquet ({error})") from None
+    return read_parquet(path, "data file")
 
 
 def read_dataset(root: str | Path) -> LeRobotDataset:
-    """The dataset at ``root``, its metadata checked: the format's version, fps, features, the tasks, the
-    episodes (numbered 0 to N - 1, as many as ``total_episodes``) and the frames' count."""
+    """The dataset at ``root``, its metadata checked: the format's version, fps, features, LeRobot's own
+    paths, the tasks, the episodes (numbered 0 to N - 1, as many as ``total_episodes``; their files' indices
+    and video files), and the frames' count."""
     root = Path(root)
     info_path = root / fmt.INFO
-    if not info_path.is_file():
+    if not info_path.exists():  # anything else there than a regular file is named by read_json
         raise DatasetError(f"{root}: not a LeRobot dataset (no {fmt.INFO})")
     info = read_json(info_path, DatasetError)
     version = info.get("codebase_version")
     if version != fmt.CODEBASE_VERSION:
         raise DatasetError(
-            f"{info_path}: codebase_version {version!r}; besman reads {fmt.CODEBASE_VERSION} (convert an "
-            "older dataset with LeRobot's convert_dataset_v21_to_v30)"
+            f"{info_path}: codebase_version {shown(version)}; besman reads {fmt.CODEBASE_VERSION} (convert "
+            "an older dataset with LeRobot's convert_dataset_v21_to_v30)"
         )
-    for key, kind in (
-        ("fps", int),
-        ("features", dict),
-        ("total_episodes", int),
-        ("total_frames", int),
-        ("data_path", str),
-    ):
+    for key, kind in (("fps", int), ("features", dict), ("total_episodes", int), ("total_frames", int)):
         if not isinstance(info.get(key), kind) or isinstance(info.get(key), bool):
-            raise DatasetError(f"{info_path}: {key} must be {kind.__name__}, got {info.get(key)!r}")
-    if info["fps"] < 1:
-        raise DatasetError(f"{info_path}: fps must be >= 1, got {info['fps']}")
-    for name, feature in info["features"].items():
-        if not isinstance(feature, dict) or not isinstance(feature.get("shape"), list):
-            raise DatasetError(f"{info_path}: features.{name} needs a dtype and a shape")
-        if not fmt.is_video(feature) and feature.get("dtype") not in fmt.SCALAR_TYPES:
+            raise DatasetError(f"{info_path}: {key} must be {kind.__name__}, got {shown(info.get(key))}")
+    if not 1 <= info["fps"] <= fmt.MAX_FPS:
+        raise DatasetError(f"{info_path}: fps must be from 1 to {fmt.MAX_FPS}, got {shown(info['fps'])}")
+    _check_features(info_path, info["features"])
+    # The paths are LeRobot's templates, never a stranger's: formatting one would walk attributes or
+    # allocate without bound, and it could name any file on the machine.
+    videos = [name for name, feature in info["features"].items() if fmt.is_video(feature)]
+    for key, template, absent in (
+        ("data_path", fmt.DATA_PATH, False),
+        ("video_path", fmt.VIDEO_PATH, not videos),
+    ):
+        if info.get(key) != template and not (absent and info.get(key) is None):
             raise DatasetError(
-                f"{info_path}: features.{name}: dtype {feature.get('dtype')!r} is not read by besman"
+                f"{info_path}: {key} {shown(info.get(key))} is not LeRobot's {template!r}, the only one "
+                "besman reads"
             )
-    for name in fmt.DEFAULT_FEATURES:
-        if name not in info["features"]:
-            raise DatasetError(f"{info_path}: features has no {name!r}, a feature every LeRobot frame has")
     tasks = _tasks(root / fmt.TASKS)
-    episodes = _episodes(root, info_path, info["total_episodes"])
-    frames = sum(pq.ParquetFile(path).metadata.num_rows for path in sorted(root.glob("data/*/*.parquet")))
+    episodes = _episodes(root, info["total_episodes"], videos)
+    files = sorted(root.glob("data/*/*.parquet"))
+    for row in episodes:
+        path = _data_file(root, row)
+        if path not in files:
+            raise DatasetError(f"{path}: missing (episode {row['episode_index']}'s data file)")
+    frames = sum(
+        read_parquet(path, "data file", lambda file: pq.ParquetFile(file).metadata.num_rows) for path in files
+    )
     if frames != info["total_frames"]:
         raise DatasetError(
             f"{info_path}: total_frames is {info['total_frames']}, the data files hold {frames} rows"
@@ -135,32 +173,89 @@ def read_dataset(root: str | Path) -> LeRobotDataset:
     return LeRobotDataset(root, info, tasks, episodes)
 
 
+def _check_features(info_path: Path, features: dict) -> None:
+    """Every feature a dtype besman reads and a shape of whole numbers >= 1 (a column's: [n], its names
+    as many if listed; a camera's: [height, width, channels], its name a folder's)."""
+    for name, feature in features.items():
+        shape = feature.get("shape") if isinstance(feature, dict) else None
+        if (
+            not isinstance(shape, list)
+            or not all(type(n) is int and n >= 1 for n in shape)
+            or not isinstance(feature.get("dtype"), str)
+        ):
+            raise DatasetError(
+                f"{info_path}: features.{name} needs a dtype and a shape of whole numbers >= 1"
+            )
+        if fmt.is_video(feature):
+            if len(shape) != 3 or name in ("", ".", "..") or "/" in name or "\0" in name:
+                raise DatasetError(
+                    f"{info_path}: features.{name}: a video needs a shape [height, width, channels] and a "
+                    "name that can be a folder's"
+                )
+            continue
+        if feature.get("dtype") not in fmt.SCALAR_TYPES:
+            raise DatasetError(
+                f"{info_path}: features.{name}: dtype {shown(feature.get('dtype'))} is not read by besman"
+            )
+        names = feature.get("names")
+        if len(shape) != 1 or (isinstance(names, list) and len(names) != shape[0]):
+            raise DatasetError(
+                f"{info_path}: features.{name}: shape {shape} with {shown(names)} as names; besman reads a "
+                "shape [n] with n names (or none)"
+            )
+    for name in fmt.DEFAULT_FEATURES:
+        if name not in features:
+            raise DatasetError(f"{info_path}: features has no {name!r}, a feature every LeRobot frame has")
+
+
 def _tasks(path: Path) -> tuple[str, ...]:
-    if not path.is_file():
+    if not path.exists():
         raise DatasetError(f"{path}: missing (every dataset lists its tasks)")
-    table = pq.read_table(path)
+    table = read_parquet(path, "tasks table")
     names = [n for n in ("task", "__index_level_0__") if n in table.column_names]
     if "task_index" not in table.column_names or not names:
         raise DatasetError(f"{path}: needs the columns task and task_index, has {table.column_names}")
     indices, texts = table["task_index"].to_pylist(), table[names[0]].to_pylist()
-    if sorted(indices) != list(range(len(indices))):
-        raise DatasetError(f"{path}: task_index must number the tasks 0 to {len(indices) - 1}, got {indices}")
+    numbered = all(type(i) is int for i in indices) and sorted(indices) == list(range(len(indices)))
+    if not numbered or not all(isinstance(t, str) for t in texts):
+        raise DatasetError(
+            f"{path}: task_index must number the tasks 0 to {len(indices) - 1} and each task be a text, got "
+            f"{shown(indices)}"
+        )
     return tuple(text for _, text in sorted(zip(indices, texts, strict=True)))
 
 
-def _episodes(root: Path, info_path: Path, total: int) -> tuple[dict, ...]:
+def _episodes(root: Path, total: int, videos: list[str]) -> tuple[dict, ...]:
+    """The episodes' rows, each with its data file's and its videos' indices (whole numbers from 0 to
+    :data:`~besman.learning.dataset_format.MAX_INDEX`) and its video files there, regular files."""
     files = sorted(root.glob("meta/episodes/*/*.parquet"))
-    rows = [row for path in files for row in pq.read_table(path).to_pylist()]
+    rows = [row for path in files for row in read_parquet(path, "episodes table").to_pylist()]
     numbers = [row.get("episode_index") for row in rows]
     if numbers != list(range(len(rows))) or len(rows) != total:
         raise DatasetError(
-            f"{root / 'meta/episodes'}: {len(rows)} episodes numbered {numbers[:5]}...; info.json's "
+            f"{root / 'meta/episodes'}: {len(rows)} episodes numbered {shown(numbers[:5])}...; info.json's "
             f"total_episodes is {total} (episodes 0 to N - 1 in order)"
         )
     for row in rows:
-        for key in ("length", "data/chunk_index", "data/file_index"):
-            if not isinstance(row.get(key), int):
-                raise DatasetError(
-                    f"{root / 'meta/episodes'}: episode {row['episode_index']} has no whole {key}"
-                )
+        where = f"{root / 'meta/episodes'}: episode {row['episode_index']}"
+        if not _whole(row.get("length")):
+            raise DatasetError(f"{where}: length {shown(row.get('length'))} is no whole number >= 0")
+        for prefix in ("data", *(f"videos/{key}" for key in videos)):
+            for key in (f"{prefix}/chunk_index", f"{prefix}/file_index"):
+                if not _whole(row.get(key), fmt.MAX_INDEX):
+                    raise DatasetError(
+                        f"{where}: {key} {shown(row.get(key))} is no whole number from 0 to {fmt.MAX_INDEX}"
+                    )
+        for key in videos:
+            path = root / fmt.VIDEO_PATH.format(
+                video_key=key,
+                chunk_index=row[f"videos/{key}/chunk_index"],
+                file_index=row[f"videos/{key}/file_index"],
+            )
+            open_file(path, ANY_SIZE, what="video file", error=DatasetError).close()
     return tuple(rows)
+
+
+def _whole(value, high: float = math.inf) -> bool:
+    """Whether ``value`` is an int (no bool) from 0 to ``high``."""
+    return type(value) is int and 0 <= value <= high

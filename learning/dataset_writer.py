@@ -29,9 +29,17 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from besman.learning import dataset_format as fmt
-from besman.learning.dataset_reader import DatasetError, LeRobotDataset, read_dataset
+from besman.learning.dataset_reader import DatasetError, LeRobotDataset, read_dataset, read_parquet
 from besman.skills.errors import InputError
-from besman.skills.storage import exchange_folders, folder_beside, write_error
+from besman.skills.storage import (
+    WriteError,
+    exchange_folders,
+    folder_beside,
+    open_temporary,
+    put_in_place,
+    write_error,
+)
+from besman.skills.validation import shown
 from besman.skills.writer_lock import WriterLock
 
 VIDEO_CODEC = "h264"  # LeRobot reads h264, hevc and AV1; H.264 encodes fastest on a CPU
@@ -48,8 +56,8 @@ class DatasetSpec:
     robot_type: str | None = None
 
     def __post_init__(self) -> None:
-        if not isinstance(self.fps, int) or self.fps < 1:
-            raise InputError(f"fps must be a whole number >= 1, got {self.fps!r}")
+        if type(self.fps) is not int or not 1 <= self.fps <= fmt.MAX_FPS:
+            raise InputError(f"fps must be a whole number from 1 to {fmt.MAX_FPS}, got {shown(self.fps)}")
         for name, feature in self.features.items():
             if name in fmt.DEFAULT_FEATURES:
                 raise InputError(f"feature {name!r} is one of LeRobot's defaults; name it otherwise")
@@ -81,17 +89,34 @@ class Episode:
     facts: Mapping[str, Any] = field(default_factory=dict)
 
 
+def dataset_folder(root: str | Path) -> Path:
+    """The folder that the dataset ``--dataset root`` is written in: a link's target (the link stays a
+    link), checked to be no file, and neither the working directory nor a folder holding it (an append
+    puts a new folder in its place and removes the old one, the process's working directory with it)."""
+    folder = Path(os.path.realpath(root))
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"--dataset {root}: a file, not a dataset folder")
+    working = Path(os.path.realpath(Path.cwd()))
+    if folder in (working, *working.parents):
+        raise InputError(
+            f"--dataset {root}: the working directory or a folder holding it; an append replaces the "
+            "dataset's folder, so give it a folder of its own (e.g. ./dataset)"
+        )
+    return folder
+
+
 class DatasetWriter:
     """The one writer of the dataset at ``root`` (made by the first append), for episodes of ``spec``; an
-    existing dataset must have been made for the same spec (its fps, features and robot type)."""
+    existing dataset must have been made for the same spec (its fps, features and robot type). Every file,
+    folder and link in the dataset's folder that is not the dataset's own stays there through the appends.
+    """
 
     def __init__(self, root: str | Path, spec: DatasetSpec) -> None:
         self.root, self.spec = Path(root), spec
-        if self.root.exists() and not self.root.is_dir():
-            raise InputError(f"--dataset {self.root}: a file, not a dataset folder")
-        self._lock = WriterLock(self.root, "--dataset").acquire()
+        self.folder = dataset_folder(root)  # the files are written there; messages name root
+        self._lock = WriterLock(self.folder, "--dataset").acquire()
         try:
-            for stale in self.root.absolute().parent.glob(f".{self.root.name}.besman-*.tmp"):
+            for stale in self.folder.parent.glob(f".{self.folder.name}.besman-*.tmp"):
                 if stale.is_dir() and not stale.is_symlink():  # a killed append's next state, or old one
                     shutil.rmtree(stale)
             self.dataset = read_dataset(self.root) if (self.root / fmt.INFO).exists() else None
@@ -115,7 +140,7 @@ class DatasetWriter:
 
     def _check_matches(self) -> None:
         if self.dataset is None:
-            if self.root.exists() and any(self.root.iterdir()):
+            if self.folder.exists() and any(self.folder.iterdir()):
                 raise InputError(
                     f"--dataset {self.root}: a folder that is not a LeRobot dataset; give another"
                 )
@@ -144,7 +169,9 @@ class DatasetWriter:
         frames, the facts of the dataset's other episodes) in one step; returns its index."""
         length = self._check(episode)
         index = self.episodes
-        stage = folder_beside(self.root)
+        stage = folder_beside(self.folder)
+        videos = []  # the episode's video files (through a linked folder: outside the stage)
+        exchanged = carried = False
         try:
             rows = list(self.dataset.episodes) if self.dataset is not None else []
             tasks = list(self.dataset.tasks) if self.dataset is not None else []
@@ -154,7 +181,13 @@ class DatasetWriter:
             data_at = self._data_file(rows, length)
             changed = {fmt.INFO, fmt.STATS, fmt.TASKS, fmt.EPISODES_PATH.format(chunk_index=0, file_index=0)}
             changed.add(fmt.DATA_PATH.format(chunk_index=data_at[0], file_index=data_at[1]))
-            self._link_unchanged(stage, changed)
+            video_at = {key: self._video_file(rows, key) for key in episode.videos}
+            changed |= {
+                fmt.VIDEO_PATH.format(video_key=key, chunk_index=chunk, file_index=file)
+                for key, (chunk, file) in video_at.items()
+            }
+            if self.folder.exists():  # the first append too: files may have been put there since
+                _carry(self.folder, stage, changed, move=False)
             columns = self._columns(episode, index, frames, tasks.index(episode.task), length)
             self._write_data(stage, data_at, columns)
             row = {
@@ -168,9 +201,11 @@ class DatasetWriter:
             }
             statistics = {name: fmt.statistics(values) for name, values in columns.items()}
             for key, video in episode.videos.items():
-                chunk, file = fmt.chunk_and_file(index)
-                path = stage / fmt.VIDEO_PATH.format(video_key=key, chunk_index=chunk, file_index=file)
-                encode_video(path, video, self.spec.fps)
+                chunk, file = video_at[key]
+                videos.append(
+                    stage / fmt.VIDEO_PATH.format(video_key=key, chunk_index=chunk, file_index=file)
+                )
+                encode_video(videos[-1], video, self.spec.fps)
                 row |= {
                     f"videos/{key}/chunk_index": chunk,
                     f"videos/{key}/file_index": file,
@@ -184,12 +219,20 @@ class DatasetWriter:
             row |= {"meta/episodes/chunk_index": 0, "meta/episodes/file_index": 0, **dict(episode.facts)}
             rows.append(row)
             info = self._write_meta(stage, rows, tasks, frames + length)
-            exchange_folders(stage, self.root)
+            exchange_folders(stage, self.folder)
+            exchanged = True
+            if stage.exists():  # the old state: what was put there meanwhile (a run's log) moves on
+                _carry(stage, self.folder, changed, move=True)
+            carried = True
         except OSError as error:
-            raise write_error(self.root, error) from error
+            kept = f"; what it could not move back into the dataset is in {stage}" if exchanged else ""
+            raise WriteError(f"{write_error(self.root, error)}{kept}") from error
         finally:
-            # The old state (after the exchange) or an unfinished one.
-            shutil.rmtree(stage, ignore_errors=True)
+            if not exchanged:
+                for path in videos:
+                    path.unlink(missing_ok=True)
+            if carried or not exchanged:  # the old state, or an unfinished one
+                shutil.rmtree(stage, ignore_errors=True)
         self.dataset = LeRobotDataset(self.root, info, tuple(tasks), tuple(rows))  # as just written
         return index
 
@@ -230,7 +273,7 @@ class DatasetWriter:
         if not rows:
             return 0, 0
         chunk, file = rows[-1]["data/chunk_index"], rows[-1]["data/file_index"]
-        current = self.root / fmt.DATA_PATH.format(chunk_index=chunk, file_index=file)
+        current = self.folder / fmt.DATA_PATH.format(chunk_index=chunk, file_index=file)
         size = current.stat().st_size
         held = sum(
             r["length"] for r in rows if (r["data/chunk_index"], r["data/file_index"]) == (chunk, file)
@@ -239,16 +282,14 @@ class DatasetWriter:
             return chunk, file
         return fmt.chunk_and_file(chunk * fmt.CHUNKS_SIZE + file + 1)
 
-    def _link_unchanged(self, stage: Path, changed: set[str]) -> None:
-        if self.dataset is None:
-            return
-        for folder, _, files in os.walk(self.root):
-            for name in files:
-                source = Path(folder, name)
-                relative = source.relative_to(self.root).as_posix()
-                if relative not in changed:
-                    (stage / relative).parent.mkdir(parents=True, exist_ok=True)
-                    os.link(source, stage / relative)
+    @staticmethod
+    def _video_file(rows: list[dict], key: str) -> tuple[int, int]:
+        """Where the episode's video of camera ``key`` goes: the file after the last one an episode has
+        (besman's own datasets: file i for episode i; LeRobot's writer puts several episodes in a file)."""
+        files = [
+            r[f"videos/{key}/chunk_index"] * fmt.CHUNKS_SIZE + r[f"videos/{key}/file_index"] for r in rows
+        ]
+        return fmt.chunk_and_file(max(files, default=-1) + 1)
 
     def _columns(self, episode: Episode, index: int, first: int, task_index: int, length: int) -> dict:
         frames = np.arange(length)
@@ -276,11 +317,12 @@ class DatasetWriter:
             [fmt.column(columns[n], features[n]) for n in schema.names], schema=schema
         )
         (stage / relative).parent.mkdir(parents=True, exist_ok=True)
+        earlier = []
+        if (self.folder / relative).exists():
+            earlier = read_parquet(self.folder / relative, "data file", _row_groups)
         with pq.ParquetWriter(stage / relative, schema) as writer:
-            if (self.root / relative).exists():
-                earlier = pq.ParquetFile(self.root / relative)
-                for group in range(earlier.num_row_groups):
-                    writer.write_table(earlier.read_row_group(group).cast(schema))
+            for group in earlier:
+                writer.write_table(group.cast(schema))
             writer.write_table(table)
 
     def _write_meta(self, stage: Path, rows: list[dict], tasks: list[str], frames: int) -> dict:
@@ -316,6 +358,37 @@ class DatasetWriter:
         return info
 
 
+def _row_groups(file) -> list[pa.Table]:
+    earlier = pq.ParquetFile(file)
+    return [earlier.read_row_group(group) for group in range(earlier.num_row_groups)]
+
+
+def _carry(source: Path, target: Path, skip: set[str], *, move: bool, relative: str = "") -> None:
+    """Puts what is in the folder ``source`` into the folder ``target``, but for the paths ``skip``
+    (relative to the dataset) and what ``target`` holds already (the same file): hard-linked (a symbolic
+    link as itself, never followed) or, with ``move``, renamed there. A folder is entered (made first if
+    ``target`` lacks it; with ``move``, renamed whole); a link to a folder is a link like any other."""
+    for entry in os.scandir(source):
+        there, name = target / entry.name, relative + entry.name
+        if name in skip or _same(entry, there):
+            continue
+        if entry.is_dir(follow_symlinks=False) and (not move or os.path.lexists(there)):
+            if not move:
+                there.mkdir()
+            _carry(Path(entry.path), there, skip, move=move, relative=f"{name}/")
+        elif move:
+            os.replace(entry.path, there)  # new, or a file replaced meanwhile (theirs is the newer)
+        else:
+            os.link(entry.path, there, follow_symlinks=False)
+
+
+def _same(entry: os.DirEntry, path: Path) -> bool:
+    try:
+        return entry.inode() == path.lstat().st_ino
+    except FileNotFoundError:
+        return False
+
+
 def video_info(feature: dict, fps: int) -> dict:
     """A camera feature's ``info`` in ``info.json``, as LeRobot's writer probes it from the MP4."""
     height, width, _ = feature["shape"]
@@ -333,11 +406,22 @@ def video_info(feature: dict, fps: int) -> dict:
 
 def encode_video(path: Path, frames: np.ndarray, fps: int) -> None:
     """``frames`` (T, height, width, 3 uint8) as an H.264 MP4, frame i at i / fps s (a keyframe every
-    second frame, as LeRobot's encoder: frames are read at random)."""
+    second frame, as LeRobot's encoder: frames are read at random); written whole or not at all (a
+    dataset's linked videos folder is written in place)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    descriptor, temporary = open_temporary(path)
+    os.close(descriptor)
+    try:
+        _encode(temporary, frames, fps)
+        put_in_place(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+
+
+def _encode(path: Path, frames: np.ndarray, fps: int) -> None:
     import av
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with av.open(str(path), "w") as container:
+    with av.open(str(path), "w", format="mp4") as container:
         stream = container.add_stream(VIDEO_CODEC, rate=fps, options={"g": "2", "crf": "23"})
         stream.width, stream.height, stream.pix_fmt = frames.shape[2], frames.shape[1], "yuv420p"
         stream.time_base = Fraction(1, fps)
@@ -348,4 +432,4 @@ def encode_video(path: Path, frames: np.ndarray, fps: int) -> None:
         container.mux(stream.encode())
 
 
-__all__ = ["DatasetError", "DatasetSpec", "DatasetWriter", "Episode", "encode_video"]
+__all__ = ["DatasetError", "DatasetSpec", "DatasetWriter", "Episode", "dataset_folder", "encode_video"]

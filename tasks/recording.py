@@ -132,5 +132,10 @@ def recorded_seeds(dataset: str | Path, task: str, robot: str) -> set[int]:
                 f"--dataset {dataset}: episode {index} is of task {facts.get('besman/task')!r} on "
                 f"{facts.get('besman/robot')!r}, not {task} on {robot}; record into another dataset"
             )
-        seeds.add(facts["besman/seed"])
+        seed = facts.get("besman/seed")
+        if type(seed) is not int:
+            raise InputError(
+                f"--dataset {dataset}: episode {index}'s besman/seed is {seed!r}, not a whole number"
+            )
+        seeds.add(seed)
     return seeds

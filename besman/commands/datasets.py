@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
-from besman.commands.options import COUNT, SEED
+from besman.commands.options import COUNT, MAX_SEED, SEED
 from besman.skills.errors import InputError
 
 
@@ -34,32 +35,47 @@ def dataset_options(command: argparse.ArgumentParser) -> None:
 
 
 def check_dataset(args: argparse.Namespace) -> None:
-    """--dataset's companions checked before any work."""
+    """--dataset and its companions checked before any work (a --log inside the dataset's folder stays
+    there through the appends)."""
     if args.video and not args.dataset:
         raise InputError("--video records the camera into a dataset: give --dataset DIR")
     if args.dataset:
         require_datasets()
+        from besman.learning.dataset_writer import dataset_folder
+
+        folder = dataset_folder(args.dataset)
         if getattr(args, "view", False):
             raise InputError("--dataset records runs without the browser viewer; drop --view")
+        log = getattr(args, "log", None)
+        if log and os.path.realpath(log) == str(folder):
+            raise InputError(f"--log {log}: the same path as --dataset {args.dataset}; give each its own")
 
 
 def _record(args: argparse.Namespace) -> int:
     require_datasets()
+    last = args.seed + args.episodes - 1
+    if last > MAX_SEED:
+        raise InputError(
+            f"--seed {args.seed} --episodes {args.episodes}: the last run's seed would be {last}, seeds go "
+            f"up to {MAX_SEED}"
+        )
+    from besman.learning.dataset_writer import dataset_folder
     from besman.tasks import task
     from besman.tasks.recording import record_run, recorded_seeds
 
+    dataset_folder(args.dataset)
     chosen = task(args.task)
     robot = chosen.check_robot(args.robot)
     from besman.robots import describe
 
     name = describe(robot).name
     done = recorded_seeds(args.dataset, chosen.name, name)
-    seeds = [seed for seed in range(args.seed, args.seed + args.episodes) if seed not in done]
-    if len(seeds) < args.episodes:
-        print(
-            f"{args.dataset}: seeds {args.episodes - len(seeds)} of {args.episodes} already recorded",
-            file=sys.stderr,
-        )
+    wanted = range(args.seed, last + 1)
+    recorded = sum(seed in wanted for seed in done)
+    if recorded:
+        print(f"{args.dataset}: seeds {recorded} of {args.episodes} already recorded", file=sys.stderr)
+    seeds = (seed for seed in wanted if seed not in done)  # one at a time: there may be billions
+    total = args.episodes - recorded
     successes = 0
     for number, seed in enumerate(seeds, 1):
         summary, index = record_run(
@@ -74,12 +90,12 @@ def _record(args: argparse.Namespace) -> int:
         )
         successes += summary.success
         print(
-            f"[{number}/{len(seeds)}] seed {seed}: {'success' if summary.success else 'failure'} "
+            f"[{number}/{total}] seed {seed}: {'success' if summary.success else 'failure'} "
             f"({summary.outcome}) -> episode {index}",
             file=sys.stderr,
             flush=True,
         )
-    print(f"{args.dataset}: {successes} of {len(seeds)} new episodes succeeded")
+    print(f"{args.dataset}: {successes} of {total} new episodes succeeded")
     return 0
 
 

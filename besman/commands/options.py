@@ -41,5 +41,6 @@ def positive(text: str) -> float:
 
 
 COUNT = integer(1)  # how many of something
-SEED = integer(0, 2**32 - 1)  # what numpy's and CMA-ES's generators accept
+MAX_SEED = 2**32 - 1  # what numpy's and CMA-ES's generators accept
+SEED = integer(0, MAX_SEED)
 PORT = integer(0, 65535)  # a TCP port to listen on (0: any free one)
