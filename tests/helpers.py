@@ -13,6 +13,7 @@ import uuid
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from besman.cli import main
 from besman.sim.reaper import environments
@@ -78,7 +79,7 @@ def failed_placements(pool: Path, taus, robot: str = "aila", tree: Path = LEARNE
 
 def is_whole(path: Path) -> bool:
     """Whether a file that besman writes is complete: JSON that parses, NPZ whose arrays all read (zip
-    checksums), PNG that ends with its IEND chunk."""
+    checksums), PNG that ends with its IEND chunk, YAML (a learned tree) that parses to a mapping."""
     data = path.read_bytes()
     try:
         if path.suffix == ".json":
@@ -87,11 +88,13 @@ def is_whole(path: Path) -> bool:
             with np.load(path, allow_pickle=False) as arrays:
                 for name in arrays.files:
                     arrays[name]
+        elif path.suffix == ".yaml":
+            return isinstance(yaml.safe_load(data), dict)
         elif path.suffix == ".png":
             return data.startswith(b"\x89PNG\r\n\x1a\n") and data.endswith(b"IEND\xaeB`\x82")
         else:
             raise AssertionError(f"{path}: no check for this kind of file")
-    except (ValueError, OSError):
+    except (ValueError, OSError, yaml.YAMLError):
         return False
     return True
 

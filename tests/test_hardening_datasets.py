@@ -108,7 +108,7 @@ def test_only_lerobots_paths_are_read(dataset, capsys, key, value):
     edit_info(dataset, **{key: value})
     with pytest.raises(DatasetError, match=f"{fmt.INFO}: {key} .* is not LeRobot's"):
         read_dataset(dataset)
-    assert len(one_line_error(capsys, "dataset", "show", str(dataset))) < 400
+    assert len(one_line_error(capsys, "dataset", "show", str(dataset)).replace(str(dataset), "")) < 300
 
 
 @pytest.mark.parametrize(
@@ -280,7 +280,7 @@ def test_an_fps_of_400_digits_is_refused(dataset, capsys):
     edit_info(dataset, fps=10**400)
     with pytest.raises(DatasetError, match="fps must be from 1 to 100000, got 1000000000"):
         read_dataset(dataset)
-    assert len(one_line_error(capsys, "dataset", "show", str(dataset))) < 200
+    assert len(one_line_error(capsys, "dataset", "show", str(dataset)).replace(str(dataset), "")) < 150
     with pytest.raises(InputError, match="fps must be a whole number from 1 to 100000"):
         DatasetSpec(fps=10**400, features=FEATURES)
 

@@ -48,7 +48,7 @@ def test_the_robots_page_two_arm_commands_run_as_written(capsys, monkeypatch):
         code, out, err = run_cli(capsys, *argv[1:])
         assert code == 0, (line, out, err)
         if argv[1:3] == ["robots", "check"]:
-            assert out.strip().endswith("all checks passed") and out.count("ok   left:") == 8, out
+            assert out.strip().endswith("all checks passed") and out.count("ok   left:") == 9, out
         else:
             assert out.startswith(("handover", "SUCCESS")) and "SUCCESS" in out, out
 
