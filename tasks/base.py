@@ -28,6 +28,7 @@ import numpy as np
 from besman import examples
 from besman.skills.errors import InputError, UnknownNameError
 from besman.skills.tasks import TaskBounds
+from besman.skills.validation import shown
 
 if TYPE_CHECKING:
     from besman.sim.perturbations import Perturbations
@@ -68,7 +69,12 @@ class TaskValue:
             if unknown:
                 raise InputError(f"--set {self.name}: {unknown[0]!r} is not one of {', '.join(self.choices)}")
             return np.array([self.choices.index(str(word)) for word in words], dtype=float)
-        return np.asarray(given, dtype=float).ravel()
+        try:
+            return np.asarray(given, dtype=float).ravel()
+        except (TypeError, ValueError):  # a mapping, or lists of unequal lengths
+            raise InputError(
+                f"--set {self.name}: takes numbers ({', '.join(self.names)}), got {shown(given)}"
+            ) from None
 
 
 @dataclass

@@ -250,6 +250,10 @@ def test_an_environments_inputs_are_named_before_any_work():
             {"value": {"object": [0.5, 0.0]}},
             r"reset options: unknown option 'value'; the one option is 'values'",
         ),
+        (
+            {"values": {"object": {"a": 1}}},
+            r"--set object: takes numbers \(object_x, object_y, object_yaw\), got \{'a': 1\} \(dict\)",
+        ),
     ]:
         with pytest.raises(InputError, match=f"^{message}"):
             env.reset(seed=1, options=options)
