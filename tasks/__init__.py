@@ -19,12 +19,11 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
-import warnings
 from collections.abc import Iterator
-from importlib.metadata import entry_points
 from types import ModuleType
 
-from besman.skills.errors import PluginWarning, UnknownNameError
+from besman.skills.errors import UnknownNameError
+from besman.skills.plugins import plugin_modules, warn_plugin
 from besman.tasks.base import Task
 
 DEFAULT = "pick-place"  # the task of ``besman demo`` without a name, and of ``besman learn``
@@ -43,35 +42,20 @@ def _builtin() -> Iterator[ModuleType]:
 
 
 def _plugins() -> Iterator[tuple[str, tuple[Task, ...]]]:
-    """(who, tasks) of each module that other distributions name (:data:`ENTRY_POINTS`). One that does not
-    import or whose ``TASKS`` is not a tuple of tasks is named in a :class:`PluginWarning` and left out: one
-    broken installed package must not take every task command down with it."""
-    for point in entry_points(group=ENTRY_POINTS):
-        who = f"the task plugin {point.name!r} of {_distribution(point)}"
-        try:
-            entries = tuple(getattr(point.load(), "TASKS", ()))
-        except Exception as error:  # whatever its import raises (a missing dependency, a syntax error...)
-            _warn(f"{who} is left out: loading {point.value} raised {type(error).__name__}: {error}")
-            continue
+    """(who, tasks) of each module that other distributions name (:data:`ENTRY_POINTS`); one whose
+    ``TASKS`` is not a tuple of tasks is warned of and left out (:mod:`besman.skills.plugins`)."""
+    for who, module in plugin_modules(ENTRY_POINTS, "task"):
+        entries = tuple(getattr(module, "TASKS", ()))
         wrong = [
             e for e in entries if not (isinstance(e, Task) and isinstance(getattr(e, "name", None), str))
         ]
         if wrong:
-            _warn(
-                f"{who} is left out: {point.value}.TASKS holds {wrong[0]!r}, which is not a named besman task"
+            warn_plugin(
+                f"{who} is left out: {module.__name__}.TASKS holds {wrong[0]!r}, which is not a named besman "
+                "task"
             )
             continue
         yield who, entries
-
-
-def _distribution(point) -> str:
-    dist = point.dist
-    return "an unknown distribution" if dist is None else f"the distribution {dist.name} {dist.version}"
-
-
-def _warn(message: str) -> None:
-    # One line: the first of a multi-line exception message says what went wrong.
-    warnings.warn(message.splitlines()[0], PluginWarning, stacklevel=2)
 
 
 def _registered() -> dict[str, Task]:
@@ -88,7 +72,9 @@ def _registered() -> dict[str, Task]:
             taken = next((name for name in names if name in found), None)
             if taken is not None:  # what is registered first (besman's own tasks) keeps its name
                 owner = type(found[taken]).__module__
-                _warn(f"{who}: its task {taken!r} is left out: {owner} already has a task called {taken!r}")
+                warn_plugin(
+                    f"{who}: its task {taken!r} is left out: {owner} already has a task called {taken!r}"
+                )
                 continue
             found.update(dict.fromkeys(names, entry))
     return found

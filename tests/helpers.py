@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shlex
 import signal
 import subprocess
 import sys
@@ -370,3 +372,34 @@ def run_within_limits(task: str, seed: int, robot: str) -> tuple:
     summary = prepared.judge(prepared.runner.run())
     executor = prepared.runner.executor
     return summary, limit_violations(executor.log, executor)
+
+
+def follow_page(page: Path, package: Path) -> list[str]:
+    """A documentation page that builds a plugin, followed literally: its files (each block marked
+    ``<!-- file: PATH -->``) written into the folder ``package``, the package installed as its last bash
+    block's first command says (``pip install ./NAME``; here into a folder of its own, beside ``package``),
+    then that block's other commands run in ``package`` with it installed; their outputs, in order."""
+    text = page.read_text()
+    for path, content in re.findall(r"<!-- file: (\S+) -->\n```\w*\n(.*?)```", text, flags=re.DOTALL):
+        (package / path).parent.mkdir(parents=True, exist_ok=True)
+        (package / path).write_text(content)
+    block = re.findall(r"```bash\n(.*?)```", text, flags=re.DOTALL)[-1]
+    commands = [shlex.split(line) for line in block.splitlines() if line.strip()]
+    assert commands[0] == ["pip", "install", f"./{package.name}"], commands[0]
+    site = package.parent / "site"
+    _succeed(sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", site, package)
+    environment = {**os.environ, "PYTHONPATH": str(site)}
+    outputs = []
+    for command in commands[1:]:
+        if command[0] == "besman":
+            command = [Path(sys.executable).parent / "besman", *command[1:]]
+        elif command[:3] == ["python", "-m", "pytest"]:
+            command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *command[3:]]
+        outputs.append(_succeed(*command, cwd=package, env=environment).stdout)
+    return outputs
+
+
+def _succeed(*argv, **options) -> subprocess.CompletedProcess:
+    result = subprocess.run([str(a) for a in argv], capture_output=True, text=True, **options)
+    assert result.returncode == 0, f"{' '.join(map(str, argv))} failed:\n{result.stdout}\n{result.stderr}"
+    return result

@@ -4,11 +4,12 @@ Leaves are ``py_trees.behaviour.Behaviour`` subclasses that drive the simulated 
 given to ``BehaviourTree.setup(executor=...)``, using the blackboard by declared roles
 (:mod:`besman.trees.base`); subtree idioms (:func:`grasp`, :func:`place`, :func:`grasp_then_place`,
 :mod:`besman.trees.idioms`) compose them; :func:`load_tree` reads YAML tree files (node types in
-:mod:`besman.trees.nodes`); :class:`Runner` ticks a tree in lockstep with the simulation and logs every
-tick, each run ending in a :class:`RunSummary` (the tasks that set runs up and judge them are
-:mod:`besman.tasks`); :mod:`besman.trees.watching` shows a run in the browser viewer. A file names
-Python templates and pools only as registered (:func:`register_template`, :func:`register_pool`) or in
-modules the caller allows (:mod:`besman.trees.registry`).
+:mod:`besman.trees.nodes`, more added by :func:`register_node_type` or installed plugins); :class:`Runner`
+ticks a tree in lockstep with the simulation and logs every tick, each run ending in a :class:`RunSummary`
+(the tasks that set runs up and judge them are :mod:`besman.tasks`); :mod:`besman.trees.watching` shows a
+run in the browser viewer. A file names Python templates and pools only as registered
+(:func:`register_template`, :func:`register_pool`) or in modules the caller allows
+(:mod:`besman.trees.registry`).
 """
 
 from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
@@ -18,6 +19,7 @@ from besman.trees.idioms import grasp, grasp_then_place, place, return_home
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
 from besman.trees.loops import ForEach
 from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanPlace, PlanReturn
+from besman.trees.nodes import register_node_type
 from besman.trees.registry import register_pool, register_template
 from besman.trees.runner import Runner, RunResult, read_log
 from besman.trees.summary import RunSummary
@@ -57,6 +59,7 @@ __all__ = [
     "loads_tree",
     "place",
     "read_log",
+    "register_node_type",
     "register_pool",
     "register_template",
     "return_home",

@@ -9,6 +9,11 @@ JSON file), ``template`` and ``pool`` (``MODULE:NAME``, registered or of an allo
 :mod:`besman.trees.registry`; or a pool directory). A kind may carry a rule that the loader checks with the
 file and line: ``>0`` or ``>=1`` (bounds of a number), ``[2|3]`` (allowed lengths of a list), ``{all|one}``
 (allowed values of a string); numbers are always finite.
+
+More node types come from :func:`register_node_type`, or from other installed distributions: a module named
+under the entry-point group ``besman.node_types`` (:data:`ENTRY_POINTS`) whose ``NODE_TYPES`` is a tuple of
+leaf classes and subtree idioms, registered as this module is imported (the documentation's "Add a node
+type" page). Besman's own names are never taken over.
 """
 
 from __future__ import annotations
@@ -21,6 +26,8 @@ from typing import Any
 
 import py_trees
 
+from besman.skills.errors import InputError
+from besman.skills.plugins import plugin_modules, warn_plugin
 from besman.trees.base import RoleBehaviour
 from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
 from besman.trees.guards import KeepApart
@@ -32,6 +39,8 @@ from besman.trees.throwing import AimThrow, Throw
 from besman.trees.timing import SimTimeout, Wait
 
 WIRING = {"namespace": "str", "remap": "keys"}
+KINDS = ("str", "float", "int", "bool", "floats", "keys", "primitive", "template", "pool")
+ENTRY_POINTS = "besman.node_types"  # the group under which other distributions name their node-type modules
 
 
 @dataclass(frozen=True)
@@ -91,6 +100,13 @@ def _params(build: Callable, kinds: Mapping[str, str]) -> dict[str, Param]:
     signature = inspect.signature(build)
     params = {}
     for name, kind in kinds.items():
+        if name not in signature.parameters:
+            raise InputError(f"{_named(build)}: declares the parameter {name!r}, which it does not take")
+        if not re.fullmatch(rf"({'|'.join(KINDS)})(>=?-?[0-9.]+|\[[0-9|]+\]|\{{[^{{}}]+\}})?", kind):
+            raise InputError(
+                f"{_named(build)}: parameter {name!r} is of kind {kind!r}; the kinds: {', '.join(KINDS)} "
+                "(with an optional rule, e.g. float>0, floats[2|3], str{a|b})"
+            )
         default = signature.parameters[name].default
         required = default is inspect.Parameter.empty
         params[name] = Param.of(kind, required, None if required else default)
@@ -181,3 +197,47 @@ NODE_TYPES: dict[str, NodeType] = {
     },
     **{factory.node_type: subtree(factory) for factory in (grasp, place, return_home, grasp_then_place)},
 }
+
+
+def _named(build: Callable) -> str:
+    return f"{getattr(build, '__module__', '?')}.{getattr(build, '__qualname__', build)}"
+
+
+def register_node_type(node: type[RoleBehaviour] | Callable) -> str:
+    """Adds a node type that tree files may use, and returns its name: a leaf class (a
+    :class:`~besman.trees.base.RoleBehaviour`, named by its class name, its parameters and roles as it
+    declares them) or a subtree idiom (a function with ``node_type``, ``parameters`` and ``planner``, as
+    :mod:`besman.trees.idioms`'). The tree loader, ``besman tree nodes`` and the tree files' JSON Schema all
+    read the one table, so the new type is checked, documented and described like besman's own. A name
+    already taken is refused."""
+    if isinstance(node, type) and issubclass(node, RoleBehaviour):
+        name, spec = node.__name__, leaf(node)
+    elif callable(node) and all(hasattr(node, a) for a in ("node_type", "parameters", "planner")):
+        name, spec = node.node_type, subtree(node)
+    else:
+        raise InputError(
+            f"{node!r}: a node type is a leaf class (a subclass of besman.trees.base.RoleBehaviour) or a "
+            "subtree idiom (a function with node_type, parameters and planner)"
+        )
+    if not re.fullmatch(r"[A-Z][A-Za-z0-9]*", name):
+        raise InputError(f"{_named(node)}: a node type's name is CamelCase, got {name!r}")
+    if name in NODE_TYPES:
+        raise InputError(
+            f"{_named(node)}: the node type {name!r} exists already ({_named(NODE_TYPES[name].build)})"
+        )
+    NODE_TYPES[name] = spec
+    return name
+
+
+def _register_plugins() -> None:
+    """The node types of other distributions' modules (:data:`ENTRY_POINTS`); what cannot be registered is
+    warned of and left out, the rest of its module kept."""
+    for who, module in plugin_modules(ENTRY_POINTS, "node-type"):
+        for node in getattr(module, "NODE_TYPES", ()):
+            try:
+                register_node_type(node)
+            except InputError as error:
+                warn_plugin(f"{who}: {error} (left out)")
+
+
+_register_plugins()
