@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from besman.learning.policy_search import CMAES, WarmStart, policy_search
+from besman.learning.policy_search import WarmStart, make_optimizer, policy_search
 from besman.sim.blocks import BlockStart, Reward, rollout
 from besman.sim.world import World
 from besman.skills import MovementPrimitive, SkillTemplate
@@ -61,8 +61,10 @@ def refine_online(
     budget: int = MAX_ROLLOUTS,
     seed: int = 0,
     reward: Reward = DEFAULT_REWARD,
+    optimizer: str = "cmaes",
 ) -> Refinement:
-    """At most ``budget`` rollouts of ``start``'s block in a fork of ``world`` (module documentation)."""
+    """At most ``budget`` rollouts of ``start``'s block in a fork of ``world`` (module documentation), the
+    search by ``optimizer`` (:func:`~besman.learning.policy_search.optimizer_names`)."""
     mask = varying(template)
     if not mask.any():  # nothing to explore: the template is certain
         return Refinement(template.instantiate(tau), np.nan, np.nan, 0, True)
@@ -83,7 +85,7 @@ def refine_online(
         return np.array(rewards)
 
     spread = np.sqrt(np.maximum(np.diag(covariance)[mask], 1e-12))
-    search = CMAES(WarmStart(mean[mask], spread), seed=seed, population_size=POPULATION)
+    search = make_optimizer(optimizer, WarmStart(mean[mask], spread), seed=seed, population_size=POPULATION)
     result = policy_search(objective, [search], budget=max(1, budget - 1))[0]
     chosen = result.best_theta if result.best_reward > result.start_reward else mean[mask]
     theta = mean.copy()

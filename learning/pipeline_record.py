@@ -18,7 +18,8 @@ from pathlib import Path
 from tqdm import tqdm
 
 from besman.learning.blocks import BuildingBlocks
-from besman.skills.errors import BesmanError
+from besman.learning.policy_search import check_optimizer
+from besman.skills.errors import BesmanError, InputError
 from besman.skills.storage import holds_files, read_json, remove_temporaries, write_atomically
 
 SCHEMA_VERSION = 1
@@ -48,7 +49,9 @@ class LearnSettings:
         roles: which label plays each of the task's blocks (empty: the task's defaults for clustering or
             examples).
         n_weights: forcing weights per joint of the retargeted primitives.
-        spread: CMA-ES's initial standard deviation (theta units: 0.1 rad per unit).
+        spread: the search's initial standard deviation (theta units: 0.1 rad per unit).
+        optimizer: the policy search's optimiser by name (``"cmaes"``, ``"xnes"`` or a registered one:
+            :func:`~besman.learning.policy_search.optimizer_names`).
         refinement: how the blocks are refined: ``"blocks"`` each alone, from the planned starts, for its
             own reward; ``"sequence"`` all together on whole-task rollouts with perturbations, each block
             credited with its cost-to-go; ``"sequence-by-block"`` on the same rollouts, one block after
@@ -65,6 +68,7 @@ class LearnSettings:
     n_weights: int = 6
     spread: float = 0.1
     refinement: str = "blocks"
+    optimizer: str = "cmaes"
 
     def role_labels(self, blocks: BuildingBlocks, robot: bool = False) -> dict[str, str]:
         """The label that plays each block: the task's default for how the recordings are labelled (like
@@ -84,6 +88,10 @@ class LearnSettings:
         for name, low in (("tasks", 2), ("budget", 1), ("n_blocks", 3), ("n_weights", 2)):
             if getattr(self, name) < low:
                 raise LearnError(f"{name} must be at least {low}, got {getattr(self, name)}")
+        try:
+            check_optimizer(self.optimizer)
+        except InputError as error:
+            raise LearnError(str(error)) from None
         if self.refinement not in REFINEMENTS:
             raise LearnError(f"refinement must be one of {', '.join(REFINEMENTS)}, got {self.refinement!r}")
         if self.refinement != "blocks" and blocks.sequence is None:
@@ -104,8 +112,9 @@ class LearnSettings:
         document = {"robot": blocks.robot, **dataclasses.asdict(self)}
         document["examples"] = list(self.examples)
         document["roles"] = self.role_labels(blocks)
-        if self.refinement == "blocks":  # the records of pools learned before there was a choice
-            del document["refinement"]
+        for name, default in (("refinement", "blocks"), ("optimizer", "cmaes")):
+            if document[name] == default:  # the records of pools learned before there was a choice
+                del document[name]
         return document
 
 

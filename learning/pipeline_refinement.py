@@ -28,7 +28,7 @@ from besman.learning.pipeline_record import (
     progress_bar,
     write_json,
 )
-from besman.learning.policy_search import CMAES, WarmStart, policy_search
+from besman.learning.policy_search import WarmStart, make_optimizer, policy_search
 from besman.learning.retargeting import fit_workspace_map, retarget
 from besman.sim.evaluation import BatchedTask
 from besman.sim.executor import Executor
@@ -239,8 +239,9 @@ def _refine_task(
     seed: int,
     progress: Callable[[int], None],
 ) -> dict:
-    """CMA-ES over the forcing weights of ``shape`` for one tau by rollouts of ``task`` (the shape's
-    thetas); the best theta, its outcome (the rollout's details) and the curve."""
+    """The settings' optimiser (CMA-ES by default) over the forcing weights of ``shape`` for one tau by
+    rollouts of ``task`` (the shape's thetas); the best theta, its outcome (the rollout's details) and the
+    curve."""
     theta0 = shape.theta.copy()
     weights = forcing_weights(shape)
     outcomes = {}
@@ -254,7 +255,7 @@ def _refine_task(
         progress(len(candidates))
         return evaluation.rewards
 
-    search = CMAES(WarmStart(theta0[weights], settings.spread), seed=seed)
+    search = make_optimizer(settings.optimizer, WarmStart(theta0[weights], settings.spread), seed=seed)
     result = policy_search(objective, [search], budget=settings.budget)[0]
     theta = theta0.copy()
     theta[weights] = result.best_theta

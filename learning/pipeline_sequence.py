@@ -129,6 +129,7 @@ def _refine_task(task, tau: np.ndarray, settings: LearnSettings, seed: int, prog
         starts,
         jointly=settings.refinement == "sequence",
         budget=settings.budget,
+        method=settings.optimizer,
         seed=seed,
         population_size=POPULATION,
         evaluate_start=False,

@@ -22,6 +22,7 @@ an optimiser's spread collapses, and records a learning curve per rollout (rewar
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
@@ -29,6 +30,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from besman.skills.errors import InputError
+from besman.skills.plugins import plugin_modules, warn_plugin
 from besman.skills.seeds import cma_seed
 from besman.skills.validation import (
     CALLABLE,
@@ -238,16 +240,59 @@ class XNES:
         return "the spread collapsed (sigma < 1e-12)" if self._sigma < 1e-12 else None
 
 
+# An optimiser by name: a class (or factory) called with a WarmStart, ``seed`` and ``population_size`` (None:
+# its own default) that gives an Optimizer. More come from register_optimizer and installed plugins.
 OPTIMIZERS: dict[str, Callable[..., Optimizer]] = {"cmaes": CMAES, "xnes": XNES}
+ENTRY_POINTS = "besman.optimizers"  # the group under which other distributions name their optimiser modules
+_plugins_loaded = False
+
+
+def register_optimizer(name: str, factory: Callable[..., Optimizer]) -> None:
+    """Adds the optimiser ``factory`` under ``name`` (lower case, digits, ``-`` and ``_``): chosen by name
+    wherever besman searches (``besman learn --optimizer``, :class:`~besman.learning.pipeline.LearnSettings`,
+    :func:`make_optimizer`). A name already taken is refused."""
+    if not isinstance(name, str) or not re.fullmatch(r"[a-z][a-z0-9_-]*", name):
+        raise InputError(f"an optimiser's name is lower case (a-z, 0-9, - and _), got {name!r}")
+    if not callable(factory):
+        raise InputError(f"optimiser {name!r}: {factory!r} is not a class or function that makes one")
+    if name in OPTIMIZERS:
+        raise InputError(f"the optimiser {name!r} exists already ({OPTIMIZERS[name]!r})")
+    OPTIMIZERS[name] = factory
+
+
+def optimizer_names() -> list[str]:
+    """Every optimiser's name: besman's, those registered, those of installed plugins (a module named under
+    :data:`ENTRY_POINTS` whose ``OPTIMIZERS`` maps names to factories; one that cannot be registered is
+    named in one warning line and left out)."""
+    global _plugins_loaded
+    if not _plugins_loaded:
+        _plugins_loaded = True
+        for who, module in plugin_modules(ENTRY_POINTS, "optimiser"):
+            for name, factory in dict(getattr(module, "OPTIMIZERS", {})).items():
+                try:
+                    register_optimizer(name, factory)
+                except InputError as error:
+                    warn_plugin(f"{who}: {error} (left out)")
+    return list(OPTIMIZERS)
+
+
+def check_optimizer(method: str, where: str = "optimizer") -> str:
+    """``method`` if it names an optimiser, else an error listing them (``where``: the option or field)."""
+    names = optimizer_names()
+    if method not in names:
+        raise InputError(f"{where} must be one of {', '.join(names)}, got {method!r}")
+    return method
 
 
 def make_optimizer(
     method: str, start: WarmStart, *, seed: int, population_size: int | None = None
 ) -> Optimizer:
-    """``method`` ("cmaes" or "xnes") warm-started from ``start``."""
-    if method not in OPTIMIZERS:
-        raise InputError(f"method must be one of {sorted(OPTIMIZERS)}, got {method!r}")
-    return OPTIMIZERS[method](start, seed=seed, population_size=population_size)
+    """The optimiser ``method`` (:func:`optimizer_names`) warm-started from ``start``; what it makes is
+    checked to be an :class:`Optimizer`."""
+    made = OPTIMIZERS[check_optimizer(method, "method")](start, seed=seed, population_size=population_size)
+    if not isinstance(made, Optimizer):
+        raise InputError(f"optimiser {method!r} made {made!r}, which has no ask, tell, mean and stop")
+    return made
 
 
 @dataclass

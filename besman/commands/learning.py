@@ -41,6 +41,7 @@ def _learn(args: argparse.Namespace) -> int:
         examples=tuple(args.examples),
         roles=args.roles,
         refinement=args.refinement,
+        optimizer=args.optimizer,
     )
     result = learn(args.demos, args.out, settings, blocks=blocks, force=args.force)
     from besman.learning.pipeline_sequence import subgoals
@@ -96,6 +97,13 @@ def register(commands) -> None:
         help="blocks: each block alone from the planned starts (default); sequence: all blocks and their "
         "subgoals together on whole-task rollouts with the task's perturbations, each credited with its "
         "cost-to-go; sequence-by-block: the same rollouts, one block after the other (see docs/learning.md)",
+    )
+    learn.add_argument(
+        "--optimizer",
+        default="cmaes",
+        metavar="NAME",
+        help="the policy search's optimiser: cmaes (default), xnes, or one an installed package adds "
+        "(docs/optimizers.md)",
     )
     learn.add_argument(
         "--backend",
