@@ -102,6 +102,9 @@ class Task:
     tree: ClassVar[str | None] = None  # its default tree file, in ``trees`` (None: no demo)
     trees: ClassVar[Path] = examples.path("trees")  # the folder of its tree: besman's examples by default
     aliases: ClassVar[tuple[str, ...]] = ()  # other names it answers to (the demos' earlier names)
+    # What it reads from a robot's description under ``"tasks": {"<name>": {...}}`` (:meth:`robot_numbers`),
+    # in a few words; "" for nothing (``besman robots check`` reports a section no task reads).
+    section: ClassVar[str] = ""
     values: ClassVar[tuple[TaskValue, ...]] = ()
     measurements: ClassVar[Mapping[str, str]] = {}  # what judge measures: name -> meaning
     max_sim_time: ClassVar[float] = 120.0  # s of simulated time a run may take

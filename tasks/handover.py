@@ -123,6 +123,7 @@ class ArmContacts:
 
 class Handover(Task):
     name = "handover"
+    section = "bar, places, ready, present and grip: where the bar lies and goes, the hands' poses, the grip"
     title = "the left hand picks a bar and hands it to the right, which puts it on the shelf"
     randomised = "where the bar lies on the table and its target on the shelf (tau)"
     success = (

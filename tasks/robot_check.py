@@ -25,6 +25,7 @@ demo at a time.
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from functools import partial
@@ -81,6 +82,7 @@ def check_robot(robot: str) -> Iterator[Finding]:
 
     description = describe(robot)
     first = next(iter(description.arms), None)
+    yield _sections(description)
     if description.tabletop is None:
         yield Finding(
             first or "-",
@@ -142,6 +144,27 @@ def check_robot(robot: str) -> Iterator[Finding]:
     if handover.fits(description):  # the left hand holds the bar by one end for the right to take it
         with_bar = tabletop_world((BAR,), robot=robot)
         yield _holds_bar(with_bar, "left", handover.numbers(robot).grip, str(description.file))
+
+
+def _sections(description) -> Finding:
+    """Every task section of the description is one a task reads (a misspelt one is otherwise ignored)."""
+    from besman.tasks import TASKS
+
+    readers = {name: entry.section for name, entry in TASKS.items() if entry.section}
+    unread = [name for name in description.tasks if name not in readers]
+    read = "; ".join(f"{name} ({what})" for name, what in readers.items())
+    if not unread:
+        return Finding(
+            "robot", "every task section is read", True, f"tasks: {', '.join(description.tasks) or 'none'}"
+        )
+    near = difflib.get_close_matches(unread[0], readers, n=1)
+    return Finding(
+        "robot",
+        "every task section is read",
+        False,
+        f"no task reads tasks.{unread[0]}" + (f" (did you mean {near[0]}?)" if near else ""),
+        f"rename or remove it in {description.file}; the sections tasks read: {read}",
+    )
 
 
 def _home(world: World, name: str, field: str, middle) -> Finding:

@@ -72,6 +72,7 @@ BOX_STREAM = 1  # the child of the run's seed that draws where the boxes stand
 
 class Stack(Task):
     name = "stack"
+    section = "spot and starts: where the tower stands and the three boxes start"
     title = "stack three boxes on a spot on the table, in the order tau gives"
     randomised = "the stack's spot and the boxes' order (tau), and where the boxes stand before"
     success = "the stack stands for 2 s: every box within 1 cm of the spot in x and y, and at its level"

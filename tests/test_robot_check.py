@@ -6,6 +6,7 @@ import json
 import shutil
 from pathlib import Path
 
+import pytest
 from helpers import PINCER, pincer, run_cli
 
 from besman.robots.catalogue import ROBOTS_DIR
@@ -147,6 +148,24 @@ def test_a_robot_without_a_tabletop_is_told_to_add_one(tmp_path):
         del raw["tabletop"], raw["tasks"]
 
     robot = ur5e_copy(tmp_path, "ur5e_no_table", change)
-    (finding,) = check_robot(robot)
+    sections, finding = check_robot(robot)
+    assert sections.passed and sections.measured == "tasks: none"
     assert not finding.passed and finding.check == "the tabletop"
     assert f"add tabletop to {robot}/description.json" in finding.fix
+
+
+@pytest.mark.parametrize(
+    ("section", "told"),
+    [("stak", "no task reads tasks.stak (did you mean stack?)"), ("sort", "no task reads tasks.sort")],
+)
+def test_a_task_section_no_task_reads_is_reported(tmp_path, section, told):
+    def change(raw):
+        raw["tasks"] = {section: {"spot": {"x": [0.4, 0.42], "y": [0.1, 0.12]}}}
+
+    robot = ur5e_copy(tmp_path, "ur5e_misspelt", change)
+    finding = next(check_robot(robot))
+    assert (finding.check, finding.passed, finding.measured) == ("every task section is read", False, told)
+    assert finding.fix.startswith(
+        f"rename or remove it in {robot}/description.json; the sections tasks read: "
+    )
+    assert "stack (spot and starts: " in finding.fix and "pick-place (places: " in finding.fix

@@ -155,6 +155,7 @@ def one_hand_tabletop(robot) -> bool:
 class PickPlace(Task):
     name = "pick-place"
     aliases = ("grasp-then-place",)
+    section = "places: the area on the shelf where the object goes"
     title = "pick the object from the table and place it on the shelf"
     randomised = (
         "the object's position and yaw on the table, its target position and yaw on the shelf, its shape and "
@@ -269,6 +270,7 @@ class PickPlace(Task):
 class Pick(PickPlace):
     name = "pick"
     aliases = ()
+    section = ""
     title = "pick the object from the table and lift it"
     randomised = "the object's position and yaw on the table, its shape and size (tau); its mass and friction"
     success = "the object is in the hand, 5 cm above where it stood"
@@ -295,6 +297,7 @@ class Pick(PickPlace):
 class Place(PickPlace):
     name = "place"
     aliases = ()
+    section = ""
     title = "put the object, held in the hand above the table, on the shelf"
     randomised = (
         "where the object was grasped on the table, its target on the shelf, its shape and size (tau)"
