@@ -19,7 +19,7 @@ Trees, each on every tau, on the task ``pick-place`` in MuJoCo (independent runs
 - ``zero-shot``: ``examples/trees/grasp_then_place_learned.yaml`` with the templates' means only (online
   refinement off);
 - ``promp``: the same learned tree whose pool holds, per block, ProMP conditioning on the move's start and
-  end configurations (:class:`besman.learning.promp_baseline.ProMPBaseline`), learned from the same
+  end configurations (:class:`besman.tasks.pick_place.promp_baseline.ProMPBaseline`), learned from the same
   training tasks; its weights per joint chosen per block by leave-one-out on the training trajectories
   (reported);
 - ``refined`` (with ``--refined``; slow): the learned tree refining every template instance online first
@@ -151,7 +151,7 @@ def _start_worker(pool_dir: str, robot: str, moves: dict, refined: bool) -> None
 
 def _select(block: str) -> dict:
     """The leave-one-out selection of the ProMP's weights for ``block``."""
-    from besman.learning.promp_baseline import select_weights
+    from besman.tasks.pick_place.promp_baseline import select_weights
 
     return select_weights(_WORKER["moves"][block], SkillTemplatePool(_WORKER["pool"])[block].prototype)
 
@@ -164,7 +164,7 @@ def _tree(name: str, weights: dict):
         return load_tree(TREES / "grasp_then_place.yaml")
     if name == "promp":
         if _WORKER["weights"] != weights:  # built once per worker
-            from besman.learning.promp_baseline import baseline_pool
+            from besman.tasks.pick_place.promp_baseline import baseline_pool
             from besman.trees.registry import register_pool
 
             register_pool(PROMP_POOL, baseline_pool(_WORKER["pool"], _WORKER["moves"], weights))
@@ -322,7 +322,7 @@ def main() -> None:
     seeds = [child_seed(args.seed, EPISODES, index) for index in range(args.count)]
     names = ["ik", "zero-shot", "promp", *(["refined"] if args.refined else [])]
 
-    from besman.learning.promp_baseline import changed_moves, training_moves
+    from besman.tasks.pick_place.promp_baseline import changed_moves, training_moves
 
     moves = {block: training_moves(pool[block], args.robot) for block in pool}
     changed = {block: changed_moves(pool[block], moves[block]) for block in pool}

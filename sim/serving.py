@@ -1,7 +1,7 @@
 """Where the browser viewer serves and whom it answers.
 
-The viewer's host is checked before viser starts (:func:`besman.hosts.host_addresses`): a name that does not
-resolve or an address of another machine is one clear error.
+The viewer's host is checked before viser starts (:func:`besman.sim.hosts.host_addresses`): a name that does
+not resolve or an address of another machine is one clear error.
 
 viser 1.1 accepts a websocket from any web page: a page the user visits while a viewer runs could open one
 to 127.0.0.1, read the scene and drive its controls (cross-site websocket hijacking). :func:`start` starts
@@ -34,7 +34,7 @@ from urllib.parse import urlsplit
 import viser
 import websockets.asyncio.server
 
-from besman.hosts import origin, origins
+from besman.sim.hosts import origin, origins
 
 log = logging.getLogger("besman.viewer")
 
@@ -141,8 +141,8 @@ def _checked_serve(handler, *args, **options):
 
 def start(host: str, port: int, allowed_origins: Iterable[str] = ()) -> viser.ViserServer:
     """viser's server on ``host`` (an address of this machine: check it first with
-    :func:`~besman.hosts.host_addresses`) and ``port`` (busy: the next free one; 0: any), answering websocket
-    handshakes only as :class:`OriginCheck` allows."""
+    :func:`~besman.sim.hosts.host_addresses`) and ``port`` (busy: the next free one; 0: any), answering
+    websocket handshakes only as :class:`OriginCheck` allows."""
     global _check
     check = OriginCheck(host, allowed_origins)
     with _starting:

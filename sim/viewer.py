@@ -2,7 +2,7 @@
 
 A :class:`Viewer` serves a web page (viser; 127.0.0.1 unless told otherwise, a free port by default) and
 answers websockets only from that page (:mod:`besman.sim.serving`; a host it cannot serve on is an error,
-one reachable from the network a warning: :mod:`besman.hosts`). The world's MuJoCo model is mirrored by
+one reachable from the network a warning: :mod:`besman.sim.hosts`). The world's MuJoCo model is mirrored by
 mjviser (geoms converted once, moving bodies as batched meshes, poses pushed inside one ``server.atomic()``
 per frame), with contacts and frames as toggles in its scene panel.
 :meth:`Viewer.show` poses the scene from the simulation; during a run it is called after every tick and
@@ -26,8 +26,7 @@ from collections.abc import Callable, Iterable
 import mujoco
 from mjviser import ViserMujocoScene
 
-from besman import hosts
-from besman.sim import serving
+from besman.sim import hosts, serving
 from besman.sim.arm import Arm
 from besman.sim.overlays import Overlays
 from besman.skills.errors import InputError

@@ -28,7 +28,7 @@ import zstandard
 from helpers import processes_marked, sigint_by_default
 from websockets.asyncio.client import connect
 
-from besman.hosts import network_addresses
+from besman.sim.hosts import network_addresses
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMOS = ROOT / "examples" / "data"

@@ -10,7 +10,10 @@ import pytest
 
 pytest.importorskip("movement_primitives.promp", reason="dev dependency movement-primitives")
 
-from besman.learning.promp_baseline import (
+from besman.sim.blocks import INPUT_NAMES
+from besman.skills import DMP, DMPSettings, MovementPrimitive, SkillTemplate, TaskBounds
+from besman.skills.errors import InputError
+from besman.tasks.pick_place.promp_baseline import (
     ProMPBaseline,
     TrainingMoves,
     conditioned_mean,
@@ -18,9 +21,6 @@ from besman.learning.promp_baseline import (
     normalised,
     select_weights,
 )
-from besman.sim.blocks import INPUT_NAMES
-from besman.skills import DMP, DMPSettings, MovementPrimitive, SkillTemplate, TaskBounds
-from besman.skills.errors import InputError
 from besman.trees.templates import check_template_fits
 
 JOINTS, DURATION, DT = 3, 1.0, 0.01
@@ -125,8 +125,8 @@ def test_the_baseline_passes_a_learned_leafs_checks_counts_changed_moves_and_ref
 
 @pytest.mark.slow
 def test_the_learned_tree_with_the_aila_pools_promp_baselines_places_the_box():
-    from besman.learning.promp_baseline import baseline_pool
     from besman.skills import SkillTemplatePool
+    from besman.tasks.pick_place.promp_baseline import baseline_pool
     from besman.tasks.running import prepare
     from besman.trees.files import loads_tree
     from besman.trees.registry import register_pool

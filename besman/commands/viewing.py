@@ -12,7 +12,7 @@ import time
 
 from besman import stopped
 from besman.commands.options import PORT, positive
-from besman.hosts import host_addresses, origins
+from besman.sim.hosts import host_addresses, origins
 from besman.skills.errors import InputError
 
 
