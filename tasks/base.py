@@ -105,6 +105,8 @@ class Task:
     # What it reads from a robot's description under ``"tasks": {"<name>": {...}}`` (:meth:`robot_numbers`),
     # in a few words; "" for nothing (``besman robots check`` reports a section no task reads).
     section: ClassVar[str] = ""
+    # The controls its Gymnasium environment takes (:mod:`besman.tasks.environment`), the default first.
+    controls: ClassVar[tuple[str, ...]] = ("joint", "ee")
     values: ClassVar[tuple[TaskValue, ...]] = ()
     measurements: ClassVar[Mapping[str, str]] = {}  # what judge measures: name -> meaning
     max_sim_time: ClassVar[float] = 120.0  # s of simulated time a run may take

@@ -14,8 +14,9 @@ or ``gymnasium.make("besman/pick-place")`` (:func:`register_environments`).
   - ``"ee"``: per arm the tool-centre point's x, y, z (m, world) and yaw (rad) with the hand pointing down,
     then the gripper opening: inverse kinematics from the commanded joints (``info["ik_error_m"]``), then as
     ``"joint"``;
-  - ``"throw"``, the throwing tasks' only control: one step per episode whose action is the throw's
-    parameters theta (the paper's DMP weights and goal), run until the ball lands. The throw is not
+  - ``"throw"``, the throwing tasks' only control (a task declares the controls it takes,
+    ``Task.controls``): one step per episode whose action is the throw's parameters theta (the paper's DMP
+    weights and goal), run until the ball lands. The throw is not
     Ruckig-smoothed (smoothing moves where the ball lands: :mod:`besman.sim.throw_execution`).
 
 - Reward 1 when the task is done by its own rule (as ``besman run`` judges a run), else 0; the episode then
@@ -44,7 +45,6 @@ from besman.tasks import TASKS
 from besman.tasks import task as find_task
 from besman.tasks.frames import RobotFrames, SceneCamera
 
-CONTROLS = ("joint", "ee", "throw")
 TICK_RATE = 50  # Hz: an environment step is one tick of the trees
 CAMERA_SIZE = (240, 320)
 ENTRY_POINT = "besman.tasks.environment:TaskEnv"
@@ -66,11 +66,11 @@ class TaskEnv(gymnasium.Env):
     ) -> None:
         self.task = find_task(task)
         self.robot = self.task.check_robot(robot)
-        throws = self.task.name.startswith("throwing")
-        control = control or ("throw" if throws else "joint")
-        if control not in CONTROLS or (control == "throw") != throws:
-            allowed = "throw" if throws else "joint or ee"
-            raise InputError(f"control {control!r}: task {self.task.name} takes {allowed}")
+        control = control or self.task.controls[0]
+        if control not in self.task.controls:
+            raise InputError(
+                f"control {control!r}: task {self.task.name} takes {' or '.join(self.task.controls)}"
+            )
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise InputError(f"render_mode {render_mode!r}: one of None, rgb_array")
         if not isinstance(judge_every, int) or judge_every < 1:

@@ -29,6 +29,7 @@ THROW_TOLERANCE = 0.5  # m between the landing and the target
 
 class Throwing(Task):
     name = "throwing"
+    controls = ("throw",)  # one step: the throw itself (the release is no joint target)
     aliases = ("throw",)
     title = "the PA-10 throws the ball at a target on the floor (the paper's variant)"
     randomised = "the target on the floor (tau)"
