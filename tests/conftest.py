@@ -1,3 +1,5 @@
+import collections
+import json
 import os
 from pathlib import Path
 
@@ -8,27 +10,38 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 SHARED_RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
 
-# The files that take minutes, longest first: the suite's workers take whole files in order (--dist
-# loadfile), and a long file started last would leave one worker running alone at the end.
-LONG_FIRST = (
-    "test_learning_pipeline.py",
-    "test_learning_full.py",
-    "test_gallery.py",
-    "test_install.py",
-    "test_benchmarks.py",
-    "test_throwing_experiment.py",
-    "test_learning_from_datasets.py",
-    "test_datasets.py",
-    "test_hardening.py",
-    "test_widowx_pair.py",
-    "test_widowx.py",
-    "test_ur5e.py",
-)
+# Each test file's time in the last full run (setup, call and teardown of its tests, s), written by
+# ``pytest -m "" --record-durations``: the suite's workers take whole files in order (--dist loadfile),
+# longest first, so that no long file starts last and leaves one worker running alone at the end. A file
+# not listed yet runs after those listed.
+DURATIONS = Path(__file__).with_name("durations.json")
+
+
+def pytest_addoption(parser) -> None:
+    parser.addoption(
+        "--record-durations",
+        action="store_true",
+        help=f"write each test file's time to {DURATIONS.name} (after a full run: -m '')",
+    )
 
 
 def pytest_collection_modifyitems(items) -> None:
-    rank = {name: index for index, name in enumerate(LONG_FIRST)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(LONG_FIRST)))  # stable: file order kept
+    seconds = json.loads(DURATIONS.read_text())["seconds"] if DURATIONS.is_file() else {}
+    items.sort(key=lambda item: -seconds.get(item.path.name, 0.0))  # stable: file order kept
+
+
+_spent: collections.Counter = collections.Counter()
+
+
+def pytest_runtest_logreport(report) -> None:
+    _spent[Path(report.nodeid.split("::")[0]).name] += report.duration  # on xdist's controller too
+
+
+def pytest_sessionfinish(session) -> None:
+    recording = session.config.getoption("--record-durations")
+    if recording and not hasattr(session.config, "workerinput"):  # the controller (or a run without xdist)
+        seconds = {name: round(total, 1) for name, total in _spent.most_common()}
+        DURATIONS.write_text(json.dumps({"schema_version": 1, "seconds": seconds}, indent=1) + "\n")
 
 
 @pytest.fixture
