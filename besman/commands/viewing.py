@@ -12,7 +12,6 @@ import time
 
 from besman import stopped
 from besman.commands.options import PORT, positive
-from besman.sim.hosts import host_addresses, origins
 from besman.skills.errors import InputError
 
 
@@ -38,6 +37,8 @@ def server_options(group) -> None:
 def server_settings(args: argparse.Namespace) -> dict:
     """The viewer's keyword arguments from :func:`server_options`, checked (an address that is not this
     machine's, an origin that is none, fails at once, in one line)."""
+    from besman.sim.hosts import host_addresses, origins  # here: parsing a command loads no simulation
+
     host_addresses(args.host)
     origins(args.allow_origin)
     return {"host": args.host, "port": args.port, "allowed_origins": args.allow_origin}
