@@ -23,7 +23,10 @@ from besman.skills.validation import shown
 # The episodes table's columns that LeRobot defines; any other (``besman/seed``) is a fact of the episode.
 LEROBOT_COLUMNS = ("episode_index", "tasks", "length", "dataset_from_index", "dataset_to_index")
 LEROBOT_PREFIXES = ("data/", "videos/", "stats/", "meta/")
-ANY_SIZE = 1 << 62  # a dataset's files are as large as their author made them; pyarrow reads what it needs
+ANY_SIZE = 1 << 62  # a dataset's files are as large as their author made them: their tables are bounded
+# What a parquet file of a dataset may unpack to: LeRobot's data files hold 100 MB of compressed frames
+# (data_files_size_in_mb) and its metadata tables far less; a few kilobytes of zeros can unpack to gigabytes.
+MAX_UNPACKED = 2_000_000_000  # bytes
 
 
 class DatasetError(BesmanError):
@@ -67,6 +70,8 @@ class LeRobotDataset:
         except FileNotFoundError:
             raise DatasetError(f"{path}: missing (episode {episode}'s data file)") from None
         table = _data_table(path, status.st_ino, status.st_mtime_ns)
+        if "episode_index" not in table.column_names or not pa.types.is_integer(table["episode_index"].type):
+            raise DatasetError(f"{path}: needs an integer column episode_index, as every LeRobot data file")
         rows = table.filter(pc.equal(table["episode_index"], episode))
         if rows.num_rows != row["length"]:
             raise DatasetError(
@@ -94,7 +99,7 @@ class LeRobotDataset:
 
 
 def _data_file(root: Path, row: dict) -> Path:
-    """The data file of the episode of ``row`` (its indices checked)."""
+    """The data file of the episode of ``row`` (whose indices :func:`read_dataset` checked)."""
     return root / fmt.DATA_PATH.format(chunk_index=row["data/chunk_index"], file_index=row["data/file_index"])
 
 
@@ -105,14 +110,27 @@ def _base_and_width(kind: pa.DataType) -> tuple[pa.DataType, int]:
     return kind, 1
 
 
-def read_parquet(path: Path, what: str, read=pq.read_table):
-    """``read`` (pyarrow's ``read_table`` or another function of an open file) applied to the parquet file
-    at ``path``, opened only once it is known to be a regular file (pyarrow would block on a FIFO for ever
-    and read ``/dev/zero`` without end); any problem is a :class:`DatasetError` naming the file (``what``
-    names its kind)."""
+def read_parquet(path: Path, what: str, read=pq.ParquetFile.read, max_rows: int | None = None):
+    """``read`` (a function of a ``pyarrow.parquet.ParquetFile``; default: the whole table) applied to the
+    parquet file at ``path``, opened only once it is known to be a regular file (pyarrow would block on a
+    FIFO for ever and read ``/dev/zero`` without end), and read only if its metadata promise at most
+    ``max_rows`` rows and :data:`MAX_UNPACKED` bytes; any problem is a :class:`DatasetError` naming the file
+    (``what`` names its kind)."""
     with open_file(path, ANY_SIZE, what=what, error=DatasetError) as file:
         try:
-            return read(file)
+            parquet = pq.ParquetFile(file)
+            meta = parquet.metadata
+            unpacked = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
+            if max_rows is not None and meta.num_rows > max_rows:
+                raise DatasetError(
+                    f"{path}: {meta.num_rows} rows, more than the {max_rows} a {what} has here"
+                )
+            if unpacked > MAX_UNPACKED:
+                raise DatasetError(
+                    f"{path}: unpacks to {unpacked} bytes, more than the {MAX_UNPACKED} besman reads of a "
+                    "parquet file"
+                )
+            return read(parquet)
         except (OSError, pa.ArrowException) as error:
             raise DatasetError(f"{path}: cannot read it as parquet ({error})") from None
 
@@ -141,8 +159,17 @@ def read_dataset(root: str | Path) -> LeRobotDataset:
     for key, kind in (("fps", int), ("features", dict), ("total_episodes", int), ("total_frames", int)):
         if not isinstance(info.get(key), kind) or isinstance(info.get(key), bool):
             raise DatasetError(f"{info_path}: {key} must be {kind.__name__}, got {shown(info.get(key))}")
+    if not 0 <= info["total_episodes"] <= fmt.MAX_INDEX:
+        raise DatasetError(
+            f"{info_path}: total_episodes must be from 0 to {fmt.MAX_INDEX}, got "
+            f"{shown(info['total_episodes'])}"
+        )
     if not 1 <= info["fps"] <= fmt.MAX_FPS:
         raise DatasetError(f"{info_path}: fps must be from 1 to {fmt.MAX_FPS}, got {shown(info['fps'])}")
+    if not isinstance(info.get("robot_type"), str | None):
+        raise DatasetError(
+            f"{info_path}: robot_type must be a text or null, got {shown(info.get('robot_type'))}"
+        )
     _check_features(info_path, info["features"])
     # The paths are LeRobot's templates, never a stranger's: formatting one would walk attributes or
     # allocate without bound, and it could name any file on the machine.
@@ -163,9 +190,7 @@ def read_dataset(root: str | Path) -> LeRobotDataset:
         path = _data_file(root, row)
         if path not in files:
             raise DatasetError(f"{path}: missing (episode {row['episode_index']}'s data file)")
-    frames = sum(
-        read_parquet(path, "data file", lambda file: pq.ParquetFile(file).metadata.num_rows) for path in files
-    )
+    frames = sum(read_parquet(path, "data file", lambda parquet: parquet.metadata.num_rows) for path in files)
     if frames != info["total_frames"]:
         raise DatasetError(
             f"{info_path}: total_frames is {info['total_frames']}, the data files hold {frames} rows"
@@ -211,7 +236,7 @@ def _check_features(info_path: Path, features: dict) -> None:
 def _tasks(path: Path) -> tuple[str, ...]:
     if not path.exists():
         raise DatasetError(f"{path}: missing (every dataset lists its tasks)")
-    table = read_parquet(path, "tasks table")
+    table = read_parquet(path, "tasks table", max_rows=fmt.MAX_INDEX)
     names = [n for n in ("task", "__index_level_0__") if n in table.column_names]
     if "task_index" not in table.column_names or not names:
         raise DatasetError(f"{path}: needs the columns task and task_index, has {table.column_names}")
@@ -229,7 +254,14 @@ def _episodes(root: Path, total: int, videos: list[str]) -> tuple[dict, ...]:
     """The episodes' rows, each with its data file's and its videos' indices (whole numbers from 0 to
     :data:`~besman.learning.dataset_format.MAX_INDEX`) and its video files there, regular files."""
     files = sorted(root.glob("meta/episodes/*/*.parquet"))
-    rows = [row for path in files for row in read_parquet(path, "episodes table").to_pylist()]
+    counted = sum(
+        read_parquet(path, "episodes table", lambda parquet: parquet.metadata.num_rows) for path in files
+    )
+    if counted != total:  # before any is read: a stranger's table may hold millions of rows
+        raise DatasetError(
+            f"{root / 'meta/episodes'}: {counted} episodes; info.json's total_episodes is {total}"
+        )
+    rows = [row for path in files for row in read_parquet(path, "episodes table", max_rows=total).to_pylist()]
     numbers = [row.get("episode_index") for row in rows]
     if numbers != list(range(len(rows))) or len(rows) != total:
         raise DatasetError(

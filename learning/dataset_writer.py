@@ -18,6 +18,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import stat
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -35,6 +37,7 @@ from besman.skills.storage import (
     WriteError,
     exchange_folders,
     folder_beside,
+    is_temporary,
     open_temporary,
     put_in_place,
     write_error,
@@ -116,9 +119,10 @@ class DatasetWriter:
         self.folder = dataset_folder(root)  # the files are written there; messages name root
         self._lock = WriterLock(self.folder, "--dataset").acquire()
         try:
-            for stale in self.folder.parent.glob(f".{self.folder.name}.besman-*.tmp"):
-                if stale.is_dir() and not stale.is_symlink():  # a killed append's next state, or old one
-                    shutil.rmtree(stale)
+            for stale in self.folder.parent.iterdir() if self.folder.parent.is_dir() else ():
+                if is_temporary(stale, of=self.folder.name) and stale.is_dir() and not stale.is_symlink():
+                    shutil.rmtree(stale)  # a killed append's next state, or the old one
+            _refuse_links(self.folder, self.root)
             self.dataset = read_dataset(self.root) if (self.root / fmt.INFO).exists() else None
             self._check_matches()
         except BaseException:
@@ -147,9 +151,9 @@ class DatasetWriter:
             return
         info, expected = self.dataset.info, self.spec.all_features
         for name, want in (("fps", self.spec.fps), ("robot_type", self.spec.robot_type)):
-            if info[name] != want:
+            if info.get(name) != want:
                 raise InputError(
-                    f"--dataset {self.root}: its {name} is {info[name]!r}, these episodes' {want!r}"
+                    f"--dataset {self.root}: its {name} is {info.get(name)!r}, these episodes' {want!r}"
                 )
         have = {
             name: {k: f.get(k) for k in ("dtype", "shape", "names")} for name, f in info["features"].items()
@@ -161,6 +165,14 @@ class DatasetWriter:
                 f"--dataset {self.root}: recorded with other features ({', '.join(differing)} differ); "
                 "record these episodes into another dataset"
             )
+        statistics = [f"stats/{f}/{n}" for f in expected for n in ("min", "max", "mean", "std", "count")]
+        for row in self.dataset.episodes:  # the dataset's statistics are merged from its episodes'
+            missing = next((column for column in statistics if column not in row), None)
+            if missing is not None:
+                raise InputError(
+                    f"--dataset {self.root}: episode {row['episode_index']} has no {missing} in "
+                    "meta/episodes; an append merges every episode's statistics"
+                )
 
     # -- appending ---------------------------------------------------------------------------------------
 
@@ -171,7 +183,7 @@ class DatasetWriter:
         index = self.episodes
         stage = folder_beside(self.folder)
         videos = []  # the episode's video files (through a linked folder: outside the stage)
-        exchanged = carried = False
+        exchanged = False
         try:
             rows = list(self.dataset.episodes) if self.dataset is not None else []
             tasks = list(self.dataset.tasks) if self.dataset is not None else []
@@ -187,7 +199,8 @@ class DatasetWriter:
                 for key, (chunk, file) in video_at.items()
             }
             if self.folder.exists():  # the first append too: files may have been put there since
-                _carry(self.folder, stage, changed, move=False)
+                os.chmod(stage, stat.S_IMODE(self.folder.stat().st_mode))
+                _link_into(self.folder, stage, changed, self.folder.stat().st_dev)
             columns = self._columns(episode, index, frames, tasks.index(episode.task), length)
             self._write_data(stage, data_at, columns)
             row = {
@@ -221,19 +234,25 @@ class DatasetWriter:
             info = self._write_meta(stage, rows, tasks, frames + length)
             exchange_folders(stage, self.folder)
             exchanged = True
-            if stage.exists():  # the old state: what was put there meanwhile (a run's log) moves on
-                _carry(stage, self.folder, changed, move=True)
-            carried = True
         except OSError as error:
-            kept = f"; what it could not move back into the dataset is in {stage}" if exchanged else ""
-            raise WriteError(f"{write_error(self.root, error)}{kept}") from error
+            raise write_error(self.root, error) from error
         finally:
             if not exchanged:
                 for path in videos:
                     path.unlink(missing_ok=True)
-            if carried or not exchanged:  # the old state, or an unfinished one
-                shutil.rmtree(stage, ignore_errors=True)
+                shutil.rmtree(stage, ignore_errors=True)  # an unfinished next state
         self.dataset = LeRobotDataset(self.root, info, tuple(tasks), tuple(rows))  # as just written
+        # The old state: what was put in the folder or taken out of it meanwhile (a run's log) follows.
+        left = _move_back(stage, self.folder, changed) if stage.exists() else []
+        if left:
+            kept = self.folder.parent / f"{self.folder.name}.besman-kept-{time.strftime('%Y%m%d-%H%M%S')}"
+            os.rename(stage, kept)
+            raise WriteError(
+                f"{self.root}: episode {index} was recorded, but {left[0]}"
+                + (f" and {len(left) - 1} more" if len(left) > 1 else "")
+                + f" changed in the folder meanwhile and could not be put back: they are in {kept}"
+            )
+        shutil.rmtree(stage, ignore_errors=True)
         return index
 
     def _check(self, episode: Episode) -> int:
@@ -358,28 +377,88 @@ class DatasetWriter:
         return info
 
 
-def _row_groups(file) -> list[pa.Table]:
-    earlier = pq.ParquetFile(file)
-    return [earlier.read_row_group(group) for group in range(earlier.num_row_groups)]
+def _row_groups(parquet: pq.ParquetFile) -> list[pa.Table]:
+    return [parquet.read_row_group(group) for group in range(parquet.num_row_groups)]
 
 
-def _carry(source: Path, target: Path, skip: set[str], *, move: bool, relative: str = "") -> None:
-    """Puts what is in the folder ``source`` into the folder ``target``, but for the paths ``skip``
-    (relative to the dataset) and what ``target`` holds already (the same file): hard-linked (a symbolic
-    link as itself, never followed) or, with ``move``, renamed there. A folder is entered (made first if
-    ``target`` lacks it; with ``move``, renamed whole); a link to a folder is a link like any other."""
+def _refuse_links(folder: Path, root: Path) -> None:
+    """Refuses a dataset whose ``meta/`` or ``data/`` holds a symbolic link: an append rewrites those in the
+    dataset's next state, and writing through a link would change the live files (or another folder)
+    before the exchange. Only ``videos/`` may live elsewhere: an append only adds files there."""
+    for part in ("meta", "data"):
+        for top, folders, files in (
+            os.walk(folder / part) if not (folder / part).is_symlink() else [(folder, [part], [])]
+        ):
+            for name in (*folders, *files):
+                if os.path.islink(os.path.join(top, name)):
+                    relative = Path(top, name).relative_to(folder)
+                    raise InputError(
+                        f"--dataset {root}: {relative} is a symbolic link; besman writes meta/ and data/ "
+                        "in the dataset's own folder (only videos/ may be linked): put the files back there"
+                    )
+
+
+def _link_into(source: Path, target: Path, skip: set[str], device: int, relative: str = "") -> None:
+    """Hard-links what is in the folder ``source`` into the new folder ``target`` (a symbolic link as
+    itself, never followed; a folder made anew with the same permissions), but for the paths ``skip``
+    (relative to the dataset). A mounted file system inside it is refused: no link crosses one."""
     for entry in os.scandir(source):
         there, name = target / entry.name, relative + entry.name
+        if name in skip:
+            continue
+        status = entry.stat(follow_symlinks=False)
+        if stat.S_ISDIR(status.st_mode):
+            if status.st_dev != device:
+                raise InputError(
+                    f"{entry.path}: another file system mounted in the dataset; an append links every file "
+                    "into the dataset's next state, and no link crosses file systems: mount it elsewhere "
+                    "and put a symbolic link here"
+                )
+            there.mkdir()
+            os.chmod(there, stat.S_IMODE(status.st_mode))
+            _link_into(Path(entry.path), there, skip, device, f"{name}/")
+        else:
+            try:
+                os.link(entry.path, there, follow_symlinks=False)
+            except OSError as error:
+                raise WriteError(
+                    f"{entry.path}: cannot link it into the dataset's next state ({error})"
+                ) from None
+
+
+def _move_back(old: Path, folder: Path, skip: set[str], relative: str = "") -> list[str]:
+    """After the exchange: what was put into the dataset's folder (``old`` now) while the append ran moves
+    into its new state ``folder`` (a file replaced meanwhile replaces the linked one), and what was taken
+    out of it is taken out of the new state; but for the paths ``skip`` (relative to the dataset), which
+    the append wrote. The paths that could not be put back (a file that became a folder or the other way
+    round), relative to the dataset."""
+    written = skip | {str(Path(path).parents[i]) for path in skip for i in range(len(Path(path).parents) - 1)}
+    left = []
+    for entry in os.scandir(folder):
+        name = relative + entry.name
+        if name not in written and not os.path.lexists(old / entry.name):  # removed meanwhile
+            try:
+                if entry.is_dir(follow_symlinks=False):
+                    shutil.rmtree(entry.path)
+                else:
+                    os.unlink(entry.path)
+            except OSError:
+                left.append(name)
+    for entry in os.scandir(old):
+        there, name = folder / entry.name, relative + entry.name
         if name in skip or _same(entry, there):
             continue
-        if entry.is_dir(follow_symlinks=False) and (not move or os.path.lexists(there)):
-            if not move:
-                there.mkdir()
-            _carry(Path(entry.path), there, skip, move=move, relative=f"{name}/")
-        elif move:
-            os.replace(entry.path, there)  # new, or a file replaced meanwhile (theirs is the newer)
+        now_folder = entry.is_dir(follow_symlinks=False)
+        if now_folder and there.is_dir() and not there.is_symlink():
+            left += _move_back(Path(entry.path), there, skip, f"{name}/")
+        elif not os.path.lexists(there) or now_folder == (there.is_dir() and not there.is_symlink()):
+            try:
+                os.replace(entry.path, there)
+            except OSError:
+                left.append(name)
         else:
-            os.link(entry.path, there, follow_symlinks=False)
+            left.append(name)
+    return left
 
 
 def _same(entry: os.DirEntry, path: Path) -> bool:

@@ -215,14 +215,26 @@ def test_both_arms_of_a_handover_are_recorded(tmp_path):
 
 
 @pytest.mark.slow
+def recorded(root: Path) -> int:
+    """The episodes the dataset at ``root`` holds (0 before its first)."""
+    try:
+        return json.loads((root / fmt.INFO).read_text())["total_episodes"]
+    except FileNotFoundError:
+        return 0
+
+
 def test_kill_9_while_recording_leaves_a_valid_dataset_that_a_rerun_completes(tmp_path):
     root = tmp_path / "dataset"
     command = record_command(root, 6)
     rng = np.random.default_rng(3)
     kills = 0
     while kills < 4:
+        before = recorded(root)
         process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        time.sleep(rng.uniform(2.5, 4.5))  # past the start (about 2 s), into the runs and appends
+        deadline = time.monotonic() + 120
+        while process.poll() is None and recorded(root) == before and time.monotonic() < deadline:
+            time.sleep(0.02)
+        time.sleep(rng.uniform(0.0, 0.9))  # past an episode (about 1 s each), into the next run or its append
         if process.poll() is not None:
             break
         os.kill(process.pid, signal.SIGKILL)

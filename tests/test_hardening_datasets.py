@@ -323,3 +323,145 @@ def test_the_working_directory_is_no_dataset_folder(tmp_path, capsys, monkeypatc
         err = one_line_error(capsys, "record", "pick-place", "--dataset", given, "--episodes", "1")
         assert f"--dataset {given}: the working directory or a folder holding it" in err
     assert list(tmp_path.iterdir()) == []
+
+
+# -- the review of this round: links, bombs, permissions, races ------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "part", ["data", "meta", "data/chunk-000", "meta/episodes/chunk-000/file-000.parquet"]
+)
+def test_a_linked_data_or_meta_is_refused_before_anything_is_written(dataset, tmp_path, part):
+    elsewhere = tmp_path / "elsewhere"
+    shutil.move(dataset / part, elsewhere)
+    (dataset / part).symlink_to(elsewhere)
+    before, outside = contents(dataset), contents(elsewhere) if elsewhere.is_dir() else elsewhere.read_bytes()
+    with pytest.raises(InputError, match=f"{part} is a symbolic link; besman writes meta/ and data/"):
+        DatasetWriter(dataset, SPEC)
+    assert contents(dataset) == before
+    assert (contents(elsewhere) if elsewhere.is_dir() else elsewhere.read_bytes()) == outside
+
+
+def test_a_table_that_would_unpack_to_millions_of_rows_is_refused_unread(dataset):
+    # 2 x 10^7 zeros compress to a few hundred kilobytes; read whole they took 5 GB.
+    bomb = dataset / fmt.EPISODES_PATH.format(chunk_index=0, file_index=1)
+    pq.write_table(pa.table({"episode_index": pa.array(np.zeros(20_000_000, dtype=np.int64))}), bomb)
+    assert bomb.stat().st_size < 2_000_000
+    with pytest.raises(
+        DatasetError, match=r"meta/episodes: 20000002 episodes; info.json's total_episodes is 2"
+    ):
+        read_dataset(dataset)
+
+
+def test_a_parquet_file_that_unpacks_past_the_bound_is_refused_unread(dataset, monkeypatch):
+    import besman.learning.dataset_reader as reader
+
+    monkeypatch.setattr(reader, "MAX_UNPACKED", 1000)  # the episodes table unpacks to a few kilobytes
+    with pytest.raises(
+        DatasetError, match=rf"{EPISODES}: unpacks to \d+ bytes, more than the 1000 besman reads"
+    ):
+        read_dataset(dataset)
+
+
+def test_an_append_keeps_the_folders_permissions(dataset):
+    os.chmod(dataset, 0o2770)
+    (dataset / "private").mkdir(mode=0o700)
+    os.chmod(dataset / "private", 0o700)
+    with DatasetWriter(dataset, SPEC) as writer:
+        writer.append(episode(2))
+    assert oct(dataset.stat().st_mode & 0o7777) == oct(0o2770)
+    assert oct((dataset / "private").stat().st_mode & 0o777) == oct(0o700)
+
+
+def test_a_dataset_whose_name_has_glob_characters_leaves_other_appends_alone(tmp_path):
+    other = tmp_path / ".d1.besman-abcd1234.tmp"  # d1's append in progress
+    other.mkdir()
+    with DatasetWriter(tmp_path / "d[1]", SPEC) as writer:
+        writer.append(episode(0))
+    assert other.is_dir()
+
+
+def test_a_file_system_mounted_in_the_dataset_is_named(dataset):
+    mounted = dataset / "videos" / "more"
+    mounted.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mounted)]).returncode:
+        pytest.skip("mounting needs root and a system that allows it")
+    try:
+        before = contents(dataset)
+        with (
+            DatasetWriter(dataset, SPEC) as writer,
+            pytest.raises(InputError, match="videos/more: another file"),
+        ):
+            writer.append(episode(2))
+        assert contents(dataset) == before
+    finally:
+        subprocess.run(["umount", str(mounted)], check=True)
+
+
+def test_what_changed_kind_meanwhile_is_kept_beside_and_the_episode_recorded(dataset, monkeypatch):
+    import besman.learning.dataset_writer as writer_module
+
+    (dataset / "notes").write_text("a file")
+    exchange = writer_module.exchange_folders
+
+    def meanwhile(stage, folder):
+        (folder / "notes").unlink()
+        (folder / "notes").mkdir()  # now a folder, with the user's file in it
+        (folder / "notes" / "today.txt").write_text("mine")
+        (folder / "gone.txt").unlink()  # taken out meanwhile: stays out
+        exchange(stage, folder)
+
+    (dataset / "gone.txt").write_text("about to go")
+    monkeypatch.setattr(writer_module, "exchange_folders", meanwhile)
+    with DatasetWriter(dataset, SPEC) as writer:
+        with pytest.raises(
+            WriteError, match="episode 2 was recorded, but notes changed in the folder meanwhile"
+        ):
+            writer.append(episode(2))
+        assert writer.episodes == 3
+    (kept,) = dataset.parent.glob("d.besman-kept-*")
+    assert (kept / "notes" / "today.txt").read_text() == "mine"
+    assert not (dataset / "gone.txt").exists() and read_dataset(dataset).info["total_episodes"] == 3
+    DatasetWriter(dataset, SPEC).close()  # the next writer leaves what was kept alone
+    assert (kept / "notes" / "today.txt").is_file()
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ("no episode_index", r"needs an integer column episode_index"),
+        ("text episode_index", r"needs an integer column episode_index"),
+        ("no robot_type", r"its robot_type is None, these episodes' 'arm'"),
+        ("no statistics", r"episode 0 has no stats/observation.state/min in meta/episodes"),
+    ],
+)
+def test_tables_without_what_every_lerobot_dataset_has_are_named(dataset, change, message):
+    if change.endswith("episode_index"):
+        table = pq.read_table(dataset / DATA)
+        position = table.column_names.index("episode_index")
+        table = table.remove_column(position)
+        if change.startswith("text"):
+            table = table.append_column("episode_index", pa.array([str(i) for i in range(table.num_rows)]))
+        pq.write_table(table, dataset / DATA)
+        with pytest.raises(DatasetError, match=message):
+            read_dataset(dataset).frames(0)
+        return
+    if change == "no robot_type":
+        info = json.loads((dataset / fmt.INFO).read_text())
+        del info["robot_type"]
+        (dataset / fmt.INFO).write_text(json.dumps(info))
+    else:
+        table = pq.read_table(dataset / EPISODES)
+        pq.write_table(table.drop_columns(["stats/observation.state/min"]), dataset / EPISODES)
+    with pytest.raises(InputError, match=message):
+        DatasetWriter(dataset, SPEC)
+
+
+def test_a_strangers_text_reaches_the_terminal_escaped(dataset, capsys):
+    table = pq.read_table(dataset / fmt.TASKS)
+    texts = ["move\x1b]0;pwned\x07\x1b[2J"]
+    pq.write_table(
+        table.set_column(table.column_names.index("task"), "task", pa.array(texts)), dataset / fmt.TASKS
+    )
+    code, out, _ = run_cli(capsys, "dataset", "show", str(dataset))
+    assert code == 0 and "\x1b" not in out and "task: move\\x1b]0;pwned\\x07\\x1b[2J" in out

@@ -6,6 +6,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -209,6 +210,20 @@ def test_a_chain_of_400_includes_is_refused_at_the_bound_naming_the_file_and_lin
     assert str(refused.value) == message
     code, out, _ = run_cli(capsys, "tree", "check", str(tmp_path / "0.yaml"))
     assert code == 1 and out == f"{message}\n"
+
+
+def test_includes_that_fan_out_are_refused_at_the_node_bound_at_once(tmp_path):
+    """Each file a Sequence of two includes of the next, 30 deep: 2^30 nodes, were they built."""
+    for k in range(30):
+        twice = f"[{{include: {k + 1}.yaml}}, {{include: {k + 1}.yaml}}]"
+        (tmp_path / f"{k}.yaml").write_text(
+            f"besman_tree: 1\nroot: {{Sequence: {{name: s, children: {twice}}}}}\n"
+        )
+    (tmp_path / "30.yaml").write_text("besman_tree: 1\nroot: {Wait: {name: w, duration: 0.1}}\n")
+    start = time.perf_counter()
+    with pytest.raises(TreeFileError, match=r"\.yaml:2: root.*: the tree has more than 10000 nodes"):
+        load_tree(tmp_path / "0.yaml")
+    assert time.perf_counter() - start < 5.0  # each file parsed once
 
 
 def test_a_tree_deeper_than_the_bound_through_includes_is_refused_naming_the_file(tmp_path):

@@ -66,6 +66,9 @@ MAX_NESTING = 200  # YAML levels (a tree level takes about four)
 # tree's levels (building, ticking and describing a tree take a few frames of Python's stack a level).
 MAX_INCLUDES = 32
 MAX_DEPTH = 100
+# Nodes in all, counted through includes: a file that includes the next one twice, 32 files deep, would
+# otherwise build 2^32 nodes. The shipped trees have at most a few hundred.
+MAX_NODES = 10_000
 
 
 class TreeFileError(BesmanError):
@@ -146,6 +149,8 @@ class _Builder:
         self.robot = robot  # the robot's name that replaces {robot} in pool paths
         self.unimported: list[str] = []  # the references left to import (not self.imports)
         self.depth = 0  # the levels of the node being built, counted through includes
+        self.nodes = 0  # the nodes built so far, counted through includes
+        self._tops: dict[tuple[Path, str], dict] = {}  # each file parsed once, however often included
 
     def file(self, path: Path, remap: Mapping[str, str], stack: tuple[Path, ...]):
         resolved = path.resolve()
@@ -174,6 +179,11 @@ class _Builder:
 
     def top(self, text: str, path: Path) -> dict:
         """The top-level mapping of a file's text, checked: its version, known fields and a root."""
+        if (path, text) not in self._tops:
+            self._tops[path, text] = self._top(text, path)
+        return self._tops[path, text]
+
+    def _top(self, text: str, path: Path) -> dict:
         if len(text) > MAX_FILE_BYTES:
             raise TreeFileError(f"{path}: larger than {MAX_FILE_BYTES} characters; not a tree file")
         try:
@@ -250,7 +260,12 @@ class _Builder:
 
     def node(self, node, path: Path, where: str, remap: Mapping[str, str], stack: tuple[Path, ...]):
         self.depth += 1
+        self.nodes += 1
         try:
+            if self.nodes > MAX_NODES:
+                raise self._error(
+                    node, path, where, f"the tree has more than {MAX_NODES} nodes (with its included files)"
+                )
             if self.depth > MAX_DEPTH:
                 raise self._error(
                     node, path, where, f"the tree is deeper than {MAX_DEPTH} levels (with its included files)"

@@ -123,23 +123,27 @@ def _dataset_show(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(facts, indent=2))
         return 0
-    print(
-        f"{facts['dataset']}: LeRobot {facts['codebase_version']}, robot {facts['robot_type']}, "
-        f"{facts['fps']} fps"
-    )
+    robot = _printable(str(facts["robot_type"]))
+    print(f"{facts['dataset']}: LeRobot {facts['codebase_version']}, robot {robot}, {facts['fps']} fps")
     known = "" if facts["successes"] is None else f", {facts['successes']} succeeded"
     print(f"{facts['episodes']} episodes, {facts['frames']} frames{known}")
     for text in facts["tasks"]:
-        print(f"task: {text}")
+        print(f"task: {_printable(text)}")
     for name, feature in facts["features"].items():
         names = feature["names"]
         shown = (
             ""
             if not isinstance(names, list)
-            else ": " + ", ".join(map(str, names[:6])) + (" ..." if len(names) > 6 else "")
+            else ": " + ", ".join(_printable(str(n)) for n in names[:6]) + (" ..." if len(names) > 6 else "")
         )
-        print(f"{name}\t{feature['dtype']} {feature['shape']}{shown}")
+        print(f"{_printable(name)}\t{feature['dtype']} {feature['shape']}{shown}")
     return 0
+
+
+def _printable(text: str) -> str:
+    """A stranger's text as the terminal may show it: control characters (escape sequences that retitle
+    the window or clear the screen) escaped."""
+    return text if text.isprintable() else repr(text)[1:-1]
 
 
 def register(commands) -> None:
