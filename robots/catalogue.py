@@ -1,15 +1,19 @@
-"""Which robots there are and what each is: the shipped ones by name, a folder of one's own by path, and
-their descriptions (read and checked; :mod:`besman.robots.description`). Light on purpose: listing and
-showing tasks reads descriptions without MuJoCo (:mod:`besman.robots.robot` compiles the models)."""
+"""Which robots there are and what each is: the shipped ones by name, a folder of one's own by path, those
+installed distributions bring by name (a package whose folder holds a ``description.json``, named under the
+entry-point group ``besman.robots``: :data:`ENTRY_POINTS`), and their descriptions (read and checked;
+:mod:`besman.robots.description`). Light on purpose: listing and showing tasks reads descriptions without
+MuJoCo (:mod:`besman.robots.robot` compiles the models)."""
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Callable
 from pathlib import Path
 
 from besman.robots.description import RobotDescription, read_description
-from besman.skills.errors import InputError, UnknownNameError
+from besman.skills.errors import BesmanError, InputError, UnknownNameError
+from besman.skills.plugins import plugin_modules, warn_plugin
 from besman.skills.validation import CALLABLE, checked, instance, optional
 
 # The check of an argument that names a robot: a shipped robot's name or a robot folder.
@@ -19,19 +23,53 @@ ROBOTS_DIR = Path(__file__).resolve().parent
 DESCRIPTION_FILE = "description.json"
 
 
+ENTRY_POINTS = "besman.robots"  # the group under which other distributions name their robots' packages
+
+
 def available() -> list[str]:
-    """Names of the robots shipped with besman (folders with a ``description.json``)."""
-    return sorted(path.parent.name for path in ROBOTS_DIR.glob(f"*/{DESCRIPTION_FILE}"))
+    """Names of the robots shipped with besman (folders with a ``description.json``) and of those installed
+    packages bring (:data:`ENTRY_POINTS`)."""
+    return sorted([*_shipped(), *_installed()])
+
+
+def _shipped() -> list[str]:
+    return [path.parent.name for path in ROBOTS_DIR.glob(f"*/{DESCRIPTION_FILE}")]
+
+
+@functools.cache
+def _installed() -> dict[str, Path]:
+    """name -> folder of each robot an installed distribution brings: the folder of the package its entry
+    point names, with the description's name. One whose folder has no readable description, or whose name
+    is taken, is warned of in one line and left out."""
+    found: dict[str, Path] = {}
+    for who, module in plugin_modules(ENTRY_POINTS, "robot"):
+        folder = Path(module.__file__).parent if getattr(module, "__file__", None) else None
+        try:
+            if folder is None:
+                raise InputError(f"{module.__name__} is no package with a folder")
+            name = read_description(folder / DESCRIPTION_FILE).name
+        except BesmanError as error:
+            warn_plugin(f"{who} is left out: {error}")
+            continue
+        if name in found or name in _shipped():
+            warn_plugin(f"{who} is left out: a robot called {name!r} exists already")
+            continue
+        found[name] = folder
+    return found
 
 
 @checked(name=ROBOT)
 def describe(name: str) -> RobotDescription:
-    """The description of a shipped robot (by name) or of a robot folder (a path), read and checked."""
+    """The description of a robot by name (shipped or installed) or of a robot folder (a path), read and
+    checked."""
     folder = Path(name)
     if not (folder / DESCRIPTION_FILE).exists():  # a special file there is refused by name when read
-        if name not in available():
+        if name in _shipped():
+            folder = ROBOTS_DIR / name
+        elif name in _installed():
+            folder = _installed()[name]
+        else:
             raise UnknownNameError(f"unknown robot {name!r}; available: {', '.join(available())}")
-        folder = ROBOTS_DIR / name
     return read_description(folder / DESCRIPTION_FILE)
 
 
