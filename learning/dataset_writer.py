@@ -243,7 +243,8 @@ class DatasetWriter:
                 shutil.rmtree(stage, ignore_errors=True)  # an unfinished next state
         self.dataset = LeRobotDataset(self.root, info, tuple(tasks), tuple(rows))  # as just written
         # The old state: what was put in the folder or taken out of it meanwhile (a run's log) follows.
-        left = _move_back(stage, self.folder, changed) if stage.exists() else []
+        folders = {parent.as_posix() for path in changed for parent in Path(path).parents[:-1]}
+        left = _move_back(stage, self.folder, changed, changed | folders) if stage.exists() else []
         if left:
             kept = self.folder.parent / f"{self.folder.name}.besman-kept-{time.strftime('%Y%m%d-%H%M%S')}"
             os.rename(stage, kept)
@@ -386,16 +387,15 @@ def _refuse_links(folder: Path, root: Path) -> None:
     dataset's next state, and writing through a link would change the live files (or another folder)
     before the exchange. Only ``videos/`` may live elsewhere: an append only adds files there."""
     for part in ("meta", "data"):
-        for top, folders, files in (
-            os.walk(folder / part) if not (folder / part).is_symlink() else [(folder, [part], [])]
-        ):
-            for name in (*folders, *files):
-                if os.path.islink(os.path.join(top, name)):
-                    relative = Path(top, name).relative_to(folder)
-                    raise InputError(
-                        f"--dataset {root}: {relative} is a symbolic link; besman writes meta/ and data/ "
-                        "in the dataset's own folder (only videos/ may be linked): put the files back there"
-                    )
+        inside = (
+            Path(top, name) for top, folders, files in os.walk(folder / part) for name in (*folders, *files)
+        )
+        link = next((path for path in (folder / part, *inside) if path.is_symlink()), None)
+        if link is not None:
+            raise InputError(
+                f"--dataset {root}: {link.relative_to(folder)} is a symbolic link; besman writes meta/ and "
+                "data/ in the dataset's own folder (only videos/ may be linked): put the files back there"
+            )
 
 
 def _link_into(source: Path, target: Path, skip: set[str], device: int, relative: str = "") -> None:
@@ -426,13 +426,12 @@ def _link_into(source: Path, target: Path, skip: set[str], device: int, relative
                 ) from None
 
 
-def _move_back(old: Path, folder: Path, skip: set[str], relative: str = "") -> list[str]:
+def _move_back(old: Path, folder: Path, skip: set[str], written: set[str], relative: str = "") -> list[str]:
     """After the exchange: what was put into the dataset's folder (``old`` now) while the append ran moves
     into its new state ``folder`` (a file replaced meanwhile replaces the linked one), and what was taken
     out of it is taken out of the new state; but for the paths ``skip`` (relative to the dataset), which
-    the append wrote. The paths that could not be put back (a file that became a folder or the other way
-    round), relative to the dataset."""
-    written = skip | {str(Path(path).parents[i]) for path in skip for i in range(len(Path(path).parents) - 1)}
+    the append wrote (``written``: those and the folders they are in). The paths that could not be put
+    back (a file that became a folder or the other way round), relative to the dataset."""
     left = []
     for entry in os.scandir(folder):
         name = relative + entry.name
@@ -450,7 +449,7 @@ def _move_back(old: Path, folder: Path, skip: set[str], relative: str = "") -> l
             continue
         now_folder = entry.is_dir(follow_symlinks=False)
         if now_folder and there.is_dir() and not there.is_symlink():
-            left += _move_back(Path(entry.path), there, skip, f"{name}/")
+            left += _move_back(Path(entry.path), there, skip, written, f"{name}/")
         elif not os.path.lexists(there) or now_folder == (there.is_dir() and not there.is_symlink()):
             try:
                 os.replace(entry.path, there)

@@ -36,6 +36,7 @@ import numpy as np
 from besman.robots.assembly import CHOICES
 from besman.robots.catalogue import describe
 from besman.robots.kinematics import bodies_below
+from besman.robots.servos import force_limit, growth_per_step, joint_inertia, servo_gains, steady_lag
 from besman.sim.arm import Arm
 from besman.sim.executor import Executor, ExecutorConfig
 from besman.sim.hand import Hand
@@ -433,45 +434,6 @@ def _holds_bar(world: World, name: str, grip: float, field: str) -> Finding:
     )
 
 
-def _stiffness_damping(model: mujoco.MjModel, joint: int) -> tuple[float, float]:
-    """The stiffness and damping (per rad or m) that the actuators acting on ``joint`` alone add to it: an
-    affine bias, ``biasprm[1]`` x position + ``biasprm[2]`` x velocity, through the gear twice."""
-    stiffness = damping = 0.0
-    for actuator in range(model.nu):
-        if model.actuator_trntype[actuator] == mujoco.mjtTrn.mjTRN_JOINT and (
-            model.actuator_trnid[actuator, 0] == joint
-            and model.actuator_biastype[actuator] == mujoco.mjtBias.mjBIAS_AFFINE
-        ):
-            gear = model.actuator_gear[actuator, 0]
-            stiffness -= model.actuator_biasprm[actuator, 1] * gear * gear
-            damping -= model.actuator_biasprm[actuator, 2] * gear * gear
-    return stiffness, damping
-
-
-def growth_per_step(
-    integrator: int,
-    timestep: float,
-    inertia: float,
-    stiffness: float,
-    damping: float,
-    implicit_damping: float,
-) -> float:
-    """How much a joint's motion grows in a step (above 1: it diverges): a mass ``inertia`` on a spring
-    ``stiffness`` and a damper ``damping`` of which ``implicit_damping`` MuJoCo's Euler integrates implicitly
-    (the joint's own damping, unless ``eulerdamp`` is off; implicit and implicitfast integrate all of it;
-    RK4, all explicitly)."""
-    h, k, d = timestep, stiffness / inertia, damping / inertia
-    if integrator == mujoco.mjtIntegrator.mjINT_RK4:
-        a = np.array([[0.0, 1.0], [-k, -d]]) * h
-        step = np.eye(2) + a + a @ a / 2 + a @ a @ a / 6 + a @ a @ a @ a / 24
-    else:  # semi-implicit Euler: the velocity (the damping's implicit share implicitly), then the position
-        implicit = d if integrator != mujoco.mjtIntegrator.mjINT_EULER else implicit_damping / inertia
-        c = 1.0 / (1.0 + h * implicit)
-        explicit = 1.0 - h * (d - implicit)
-        step = np.array([[1.0 - c * h * h * k, c * h * explicit], [-c * h * k, c * explicit]])
-    return float(np.abs(np.linalg.eigvals(step)).max())
-
-
 def _integrator(world: World, name: str, file) -> Finding:
     """Each joint of the arm and its gripper, on its own inertia at home (armature included), with its
     actuators' stiffness and damping and its own damping: stable under the model's integrator and timestep
@@ -485,13 +447,9 @@ def _integrator(world: World, name: str, file) -> Finding:
     worst = None
     for joint in dict.fromkeys(j for group in groups for j in world.robot.group(group).joints):
         index = model.joint(joint).id
-        dof = model.jnt_dofadr[index]
-        unit, column = np.zeros(model.nv), np.zeros(model.nv)
-        unit[dof] = 1.0
-        mujoco.mj_mulM(model, data, column, unit)
-        inertia = float(column[dof])
-        stiffness, servo_damping = _stiffness_damping(model, index)
-        own = float(model.dof_damping[dof])
+        inertia = joint_inertia(model, data, index)
+        stiffness, servo_damping = servo_gains(model, index)
+        own = float(model.dof_damping[model.jnt_dofadr[index]])
         growth = growth_per_step(
             integrator,
             model.opt.timestep,
@@ -563,7 +521,7 @@ def _limits(world: World, name: str, file) -> Finding:
         executor.run(MoveTo("limits", target=target), timeout=10.0, observe=watch)
         # A move this short may end before the lag from the joint's damping and friction has built up; a
         # demo's longer one lags as much as it steadily does at the velocity limit.
-        steady = _steady_lag(world, joints[index], speed)
+        steady = steady_lag(*_servo(world, joints[index]), speed)
         lags.append(max(worst[0], steady))
         speeds.append(worst[1] if worst[0] >= steady else speed)
     allowed = LAG_SHARE * config.following_tolerance
@@ -582,16 +540,10 @@ def _servo(world: World, joint: str) -> tuple[float, float, float, float]:
     by kv / kp: ``velocity_feedforward``), and the joint's own damping and friction loss."""
     model = world.model
     index = model.joint(joint).id
-    kp, kv = _stiffness_damping(model, index)
+    kp, kv = servo_gains(model, index)
     kv *= not world.robot.description.velocity_feedforward
     dof = model.jnt_dofadr[index]
     return kp, kv, float(model.dof_damping[dof]), float(model.dof_frictionloss[dof])
-
-
-def _steady_lag(world: World, joint: str, speed: float) -> float:
-    """How far ``joint`` steadily lags at ``speed`` (:func:`_lag_cause`): 0 without a servo on the joint."""
-    kp, kv, damping, friction = _servo(world, joint)
-    return (friction + (damping + kv) * speed) / kp if kp > 0 else 0.0
 
 
 def _below(speed: float) -> float:
@@ -606,39 +558,25 @@ def _lag_cause(world: World, joint: str, lag: float, speed: float, file) -> tupl
     ``velocity_feedforward``), up to f / kp at rest (against the executor's arrival tolerance), drives it no
     faster than (force range - f) / d. The rest of the lag measured (inertia, gravity) stays at a lower
     speed, so the velocity suggested is one this check passes."""
-    model, config = world.model, ExecutorConfig()
+    config = ExecutorConfig()
     allowed = LAG_SHARE * config.following_tolerance
-    index = model.joint(joint).id
     kp, kv, damping, friction = _servo(world, joint)
-    force = min(
-        (
-            float(np.abs(model.actuator_forcerange[a]).max() * abs(model.actuator_gear[a, 0]))
-            for a in range(model.nu)
-            if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
-            and model.actuator_trnid[a, 0] == index
-            and model.actuator_forcelimited[a]
-        ),
-        default=np.inf,
-    )
+    force = force_limit(world.model, world.model.joint(joint).id)
     field = f"{file}: limits.{joint}.velocity"
     if kp <= 0 or not (damping or friction):  # the actuator's own damping, or a servo through a tendon
-        fastest = (
-            speed * LAG_SHARE * config.following_tolerance / max(lag, 1e-9)
-        )  # the lag grows with the speed
+        fastest = speed * allowed / max(lag, 1e-9)  # the lag grows with the speed
         return "", (
             f"the model's actuators cannot drive {joint} that fast: a velocity limit of at most "
             f"{_below(fastest):.2f} ({field}), or velocity_feedforward where the actuators "
             "damp the joint's speed"
         )
-    predicted = _steady_lag(world, joint, speed)
+    predicted = steady_lag(kp, kv, damping, friction, speed)
     rest = max(lag - predicted, 0.0)
     fastest = min(
         ((allowed - rest) * kp - friction) / (damping + kv) if damping + kv > 0 else np.inf,
         (force - friction) / damping if damping > 0 else np.inf,
     )
-    if np.isinf(
-        fastest
-    ):  # friction alone: its lag does not grow with the speed, what else does in proportion
+    if np.isinf(fastest):  # friction alone does not grow with the speed: what else does, in proportion
         fastest = speed * allowed / max(lag, 1e-9)
     gives = f"gives at most {force:.3g} (forcerange)" if np.isfinite(force) else "has no force limit"
     asks = (

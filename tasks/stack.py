@@ -27,6 +27,7 @@ import numpy as np
 from besman.skills.seeds import child_seed
 from besman.skills.tasks import TaskBounds
 from besman.tasks.base import Scene, Task, TaskValue
+from besman.tasks.pick_place import first_hand
 
 BOXES = {"red": (0.80, 0.15, 0.12, 1.0), "green": (0.20, 0.62, 0.25, 1.0), "blue": (0.15, 0.35, 0.80, 1.0)}
 ORDERS = tuple(itertools.permutations(BOXES))  # bottom to top
@@ -90,8 +91,7 @@ class Stack(Task):
     max_sim_time = 240.0
 
     def fits(self, robot) -> bool:
-        arms = list(robot.arms.values())
-        return bool(arms) and arms[0].gripper is not None and _layout(str(robot.folder)) is not None
+        return first_hand(robot) and _layout(str(robot.folder)) is not None
 
     def bounds(self, robot: str) -> TaskBounds:
         (x0, x1), (y0, y1) = _layout(robot).spots

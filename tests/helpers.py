@@ -403,3 +403,13 @@ def _succeed(*argv, **options) -> subprocess.CompletedProcess:
     result = subprocess.run([str(a) for a in argv], capture_output=True, text=True, **options)
     assert result.returncode == 0, f"{' '.join(map(str, argv))} failed:\n{result.stdout}\n{result.stderr}"
     return result
+
+
+def install_plugin(site: Path, distribution: str, group: str, module: str, name: str | None = None) -> None:
+    """The distribution ``distribution`` 1.0 as importlib.metadata finds it in the folder ``site`` (on the
+    path): its dist-info, naming the module ``module`` (written beside it by the caller) under the
+    entry-point group ``group`` as ``name`` (default: the module's)."""
+    info = site / f"{distribution.replace('-', '_')}-1.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {distribution}\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text(f"[{group}]\n{name or module} = {module}\n")

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import ClassVar
 
 import pytest
-from helpers import follow_page
+from helpers import follow_page, install_plugin
 from py_trees.common import Status
 
 from besman.skills.errors import InputError
@@ -89,7 +89,7 @@ def test_what_cannot_be_a_node_type_is_refused_by_name():
     assert NODE_TYPES["Wait"].build.__module__ == "besman.trees.timing"
 
 
-# A distribution's dist-info as importlib.metadata finds it: its name, version and entry points.
+# Installed node-type plugins (tests/helpers.py: install_plugin): distribution -> (module, its source).
 BROKEN_PLUGINS = {
     "besman-missing": ("missing_dependency", "import not_installed_anywhere\n"),
     "besman-clash": (
@@ -106,12 +106,8 @@ BROKEN_PLUGINS = {
 def test_a_broken_node_type_plugin_is_one_warning_line_and_trees_still_work(tmp_path):
     site = tmp_path / "site"
     for dist, (module, source) in BROKEN_PLUGINS.items():
-        (site / f"{module}.py").parent.mkdir(parents=True, exist_ok=True)
+        install_plugin(site, dist, "besman.node_types", module)
         (site / f"{module}.py").write_text(source)
-        info = site / f"{dist.replace('-', '_')}-1.0.dist-info"
-        info.mkdir()
-        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 1.0\n")
-        (info / "entry_points.txt").write_text(f"[besman.node_types]\n{module} = {module}\n")
     result = subprocess.run(
         [
             Path(sys.executable).parent / "besman",

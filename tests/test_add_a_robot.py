@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from helpers import follow_page
+from helpers import follow_page, install_plugin
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "add-a-robot.md"
@@ -27,14 +27,11 @@ def test_a_robot_package_without_a_description_or_with_a_taken_name_is_one_warni
         ("besman-empty", "empty_robot", None),
         ("besman-copy", "copied_robot", (ROOT / "robots" / "ur5e" / "description.json").read_text()),
     ]:
-        (site / module).mkdir(parents=True)
+        install_plugin(site, dist, "besman.robots", module)
+        (site / module).mkdir()
         (site / module / "__init__.py").write_text("")
         if description is not None:
             (site / module / "description.json").write_text(description)
-        info = site / f"{dist.replace('-', '_')}-1.0.dist-info"
-        info.mkdir()
-        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 1.0\n")
-        (info / "entry_points.txt").write_text(f"[besman.robots]\n{module} = {module}\n")
     result = subprocess.run(
         [Path(sys.executable).parent / "besman", "robots"],
         capture_output=True,

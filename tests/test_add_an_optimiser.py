@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import follow_page, run_cli
+from helpers import follow_page, install_plugin, run_cli
 
 from besman.learning.policy_search import (
     CMAES,
@@ -79,12 +79,8 @@ def test_a_broken_optimiser_plugin_is_one_warning_line(tmp_path):
         "besman-taken": ("taken_search", taken),
     }
     for dist, (module, source) in plugins.items():
-        site.mkdir(exist_ok=True)
+        install_plugin(site, dist, "besman.optimizers", module)
         (site / f"{module}.py").write_text(source)
-        info = site / f"{dist.replace('-', '_')}-1.0.dist-info"
-        info.mkdir()
-        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 1.0\n")
-        (info / "entry_points.txt").write_text(f"[besman.optimizers]\n{module} = {module}\n")
     result = subprocess.run(
         [sys.executable, "-c", "from besman.learning.policy_search import optimizer_names as n; print(n())"],
         capture_output=True,

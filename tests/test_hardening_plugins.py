@@ -24,7 +24,7 @@ from besman.tasks.environment import TaskEnv
 from besman.trees import TreeFileError, load_tree
 from besman.trees.files import MAX_INCLUDES
 from besman.trees.runner import LOG_KIND
-from tests.helpers import run_cli, snapshot
+from tests.helpers import install_plugin, run_cli, snapshot
 from tests.test_hardening_writes import small_space, tmpfs  # noqa: F401 (fixtures: a full disk, a size limit)
 
 EXAMPLES = examples.path()
@@ -57,10 +57,7 @@ def plugins(tmp_path_factory) -> Path:
     for dist, (name, imports, tasks) in PLUGINS.items():
         module = f"{name}_tasks"
         (site / f"{module}.py").write_text(f"{imports}\nfrom besman_tidy import *  # noqa\n{tasks}\n")
-        info = site / f"{dist.replace('-', '_')}-1.0.dist-info"
-        info.mkdir()
-        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 1.0\n")
-        (info / "entry_points.txt").write_text(f"[besman.tasks]\n{name} = {module}\n")
+        install_plugin(site, dist, "besman.tasks", module, name)
     return site
 
 

@@ -146,10 +146,15 @@ def the_object(robot: str, values, seed: int | None) -> GraspableObject:
     return objects.make("box", shape, values["size"], mass, friction)
 
 
+def first_hand(robot) -> bool:
+    """Whether the robot's first arm has a gripper (the hand the one-handed tasks use)."""
+    arms = list(robot.arms.values())
+    return bool(arms) and arms[0].gripper is not None
+
+
 def one_hand_tabletop(robot) -> bool:
     """A work surface, a first arm with a gripper and a place area: what pick and place needs."""
-    arms = list(robot.arms.values())
-    return bool(arms) and arms[0].gripper is not None and areas(str(robot.folder)) is not None
+    return first_hand(robot) and areas(str(robot.folder)) is not None
 
 
 class PickPlace(Task):
