@@ -29,9 +29,9 @@ Per tree: success rate (the tree succeeded and the task's rule holds: after sett
 upright on the shelf within 2 cm of the target and 5 deg of its yaw), how many runs succeed within
 :data:`PRECISE` (1 cm and 5 deg), mean and max placement error (cm) and yaw error (deg), episode time
 (simulated), the hand's path length and peak jerk (from the commanded joints,
-:func:`besman.sim.blocks.hand_measures`) and the wall time per episode. The learned trees also return the
-arm home, which the IK-planned tree does not, so path and jerk are given up to the placement (the commands
-before the return home) and over the whole episode. Targets (:data:`TARGETS`): the share of runs that
+:func:`besman.sim.block_simulation.hand_measures`) and the wall time per episode. The learned trees also
+return the arm home, which the IK-planned tree does not, so path and jerk are given up to the placement (the
+commands before the return home) and over the whole episode. Targets (:data:`TARGETS`): the share of runs that
 succeed within :data:`PRECISE` is >= 98 % for ``ik`` and >= 95 % for ``zero-shot``. The text table gives
 the counts as ratios (k/n) and each tree's time, path and jerk as a ratio to the ``ik`` tree's; the
 failures follow with their tau and message.
@@ -50,8 +50,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from besman.core.seeds import child_seed
 from besman.skills import SkillTemplatePool
-from besman.skills.seeds import child_seed
 from besman.tasks import task
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -174,7 +174,7 @@ def _tree(name: str, weights: dict):
 
 
 def _episode(name: str, tau: list[float], seed: int, weights: dict) -> dict:
-    from besman.sim.blocks import hand_measures
+    from besman.sim.block_simulation import hand_measures
     from besman.tasks.running import prepare
 
     values = task("pick-place").split(np.asarray(tau))

@@ -28,8 +28,8 @@ from pathlib import Path
 
 from learned import held_out, training_taus
 
+from besman.core.seeds import child_seed
 from besman.skills import SkillTemplatePool
-from besman.skills.seeds import child_seed
 from besman.tasks import task
 
 ROOT = Path(__file__).resolve().parent.parent

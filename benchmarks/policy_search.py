@@ -4,7 +4,7 @@
 
 For each method (CMA-ES through pycma, xNES), one search on the paper's throwing task (96-D theta, the
 default population of 17): the wall time of ``ask`` + ``tell`` per generation and the wall time of
-evaluating the generation's throws (``ThrowingTask.evaluate``: DMPs, rollouts on all threads, rewards),
+evaluating the generation's throws (``ThrowingRollouts.evaluate``: DMPs, rollouts on all threads, rewards),
 measured in the same run. Target: the optimiser's overhead below 10 % of the rollout time.
 """
 
@@ -17,13 +17,13 @@ import time
 
 import numpy as np
 
-from besman.learning.policy_search import WarmStart, make_optimizer
-from besman.sim.throwing import ThrowingTask
+from besman.learning.search.policy_search import WarmStart, make_optimizer
+from besman.tasks.throwing.rollouts import ThrowingRollouts
 
 TARGET_OVERHEAD = 0.10
 
 
-def measure(method: str, task: ThrowingTask, generations: int) -> dict:
+def measure(method: str, task: ThrowingRollouts, generations: int) -> dict:
     optimizer = make_optimizer(method, WarmStart(task.default_theta(), 0.3), seed=0)
     tau = np.array([-3.5, -3.6])
     optimizer_times, rollout_times = [], []
@@ -51,7 +51,7 @@ def main() -> None:
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--generations", type=int, default=20)
     args = parser.parse_args()
-    task = ThrowingTask()
+    task = ThrowingRollouts()
     report = {method: measure(method, task, args.generations) for method in ("cmaes", "xnes")}
     if args.json:
         print(json.dumps({"benchmark": "policy_search", "dimensions": task.n_params, **report}, indent=2))

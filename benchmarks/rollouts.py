@@ -3,7 +3,7 @@
     python benchmarks/rollouts.py [--json] [--repeats 7]
 
 Throwing (64 candidates x 1.5 s at 1 ms, all threads of this machine):
-- ours: ``ThrowingTask.evaluate`` - DMP generation, controls, rollouts, landing points and rewards;
+- ours: ``ThrowingRollouts.evaluate`` - DMP generation, controls, rollouts, landing points and rewards;
 - raw: ``mujoco.rollout`` alone on the same control arrays (the physical limit here);
 - naive: a Python loop over ``mj_step`` on one thread, setting the same controls each step.
 Targets: ours >= 0.9 x raw steps/s, ours >= 1.8 x naive steps/s.
@@ -32,9 +32,9 @@ from rich.console import Console
 from rich.table import Table
 
 from besman.sim import executor
-from besman.sim.throwing import ThrowingConfig, ThrowingTask
 from besman.tasks.pick_place.blocks import BlockTaskConfig
-from besman.tasks.pick_place.episode import PickPlaceTask
+from besman.tasks.pick_place.episode import PickPlaceRollouts
+from besman.tasks.throwing.rollouts import ThrowingConfig, ThrowingRollouts
 
 CANDIDATES = 64
 POOL = Path(__file__).resolve().parents[1] / "examples" / "pools" / "pick_place_aila"
@@ -55,7 +55,7 @@ def timed(functions, repeats: int) -> list[float]:
 
 
 def throwing(repeats: int) -> dict:
-    task = ThrowingTask(ThrowingConfig(duration=1.5))
+    task = ThrowingRollouts(ThrowingConfig(duration=1.5))
     rng = np.random.default_rng(0)
     thetas = np.tile(task.default_theta(), (CANDIDATES, 1))
     joints = task.arm.size * (task.config.n_weights + 2)  # perturb the joints' DMPs; every throw releases
@@ -107,7 +107,7 @@ def throwing(repeats: int) -> dict:
 
 
 def pick_and_place() -> dict:
-    task = PickPlaceTask()
+    task = PickPlaceRollouts()
     box = (0.0, 0.06, 0.06, 0.06)  # pick and place's 6 cm box; every yaw 0
     taus = [
         [0.5, -0.1, 0.0, 0.5, -0.4, 0.0, *box],

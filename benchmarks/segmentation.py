@@ -47,13 +47,13 @@ from rich.progress import track
 from rich.table import Table
 from scipy.signal import find_peaks
 
+from besman.core.errors import InputError
+from besman.core.storage import check_output
 from besman.learning import Demonstration, load, resample, segment, smooth
-from besman.learning.changepoints import VELOCITY_MODELS
-from besman.learning.contact import GRIP, OBJECT_AND_GRIP
-from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
-from besman.learning.segmentation import boundary_f1
-from besman.skills.errors import InputError
-from besman.skills.storage import check_output
+from besman.learning.segmentation.changepoints import VELOCITY_MODELS
+from besman.learning.segmentation.contact import GRIP, OBJECT_AND_GRIP
+from besman.learning.segmentation.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
+from besman.learning.segmentation.segmenter import boundary_f1
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
 RATE = 20.0

@@ -43,12 +43,12 @@ import numpy as np
 from learned import held_out, training_taus
 from learned_tree import episode
 
-from besman.learning.pipeline_record import LearnSettings
-from besman.learning.pipeline_refinement import store_templates
-from besman.learning.pipeline_sequence import refine_sequences, subgoals
-from besman.learning.task_structure import TaskStructure
+from besman.core.seeds import child_seed
+from besman.learning.pipeline.record import LearnSettings
+from besman.learning.pipeline.refinement import store_templates
+from besman.learning.pipeline.sequence_refinement import refine_sequences, subgoals
+from besman.learning.pipeline.task_structure import TaskStructure
 from besman.skills import SkillTemplatePool
-from besman.skills.seeds import child_seed
 from besman.tasks import task
 from besman.trees.learned import write_learned_tree
 

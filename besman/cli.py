@@ -14,10 +14,10 @@ import time
 import warnings
 from collections.abc import Iterator, Sequence
 
-from besman import stopped
 from besman._version import __version__
 from besman.commands import datasets, examples, learning, pool, recordings, robots, tasks, trees, viewing
-from besman.skills.errors import PluginWarning
+from besman.core.errors import PluginWarning
+from besman.stopping import stopped
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -13,8 +13,8 @@ import argparse
 
 from playwright.sync_api import sync_playwright
 
+from besman.core.storage import check_output, write_atomically
 from besman.sim.viewer import headless_chromium
-from besman.skills.storage import check_output, write_atomically
 from besman.tasks import task
 from besman.tasks.session import Session
 

@@ -1,72 +1,55 @@
-"""Learning: from demonstrations (recordings, smoothing, segmentation, labelling, imitation) and by trial.
+"""Learning: from demonstrations and by trial, in three subsystems.
 
-:mod:`besman.learning.demonstration` (recordings and their loaders),
-:mod:`besman.learning.preprocessing` (Kalman/RTS smoothing, gaps, resampling, hand poses) and
-:mod:`besman.learning.changepoints` (exact Bayesian change-point inference: evidences, MAP, change-point
-probabilities, posterior samples, several signals observed jointly), :mod:`besman.learning.contact` (the
-grip aperture and the object's marker as contact signals), :mod:`besman.learning.segmentation`
-(``segment(demo)``: a recording cut into movements and holds, hyperparameters by marginal likelihood, and
-boundary F1), :mod:`besman.learning.segmentation_plot`,
-:mod:`besman.learning.labelling` (building blocks: clustering, few-shot 1-NN),
-:mod:`besman.learning.imitation` (a Cartesian-DMP primitive per building block),
-:mod:`besman.learning.policy_search` (CMA-ES and xNES refining theta on batched rollouts),
-:mod:`besman.learning.sequences` (a task's blocks refined together on whole-task rollouts, each credited with
-its cost-to-go, or block by block),
-:mod:`besman.learning.contextual_search` (C-REPS and contextual CMA-ES: one policy over all tasks),
-:mod:`besman.learning.template_selection` (a template's kernel by outcomes at held-out targets),
-:mod:`besman.learning.feasibility` (the free guard: a proposal whose reference fails pulled back before any
-rollout), :mod:`besman.learning.outcome_refinement` (Gauss-Newton steps in outcome space with Broyden's
-corrections),
-:mod:`besman.learning.retargeting` (a person's movement onto AILA's arm), :mod:`besman.learning.pipeline`
-(``besman learn``: recordings to a template pool of a task's :mod:`building blocks <besman.learning.blocks>`;
-its stages in :mod:`besman.learning.pipeline_labels` and :mod:`besman.learning.pipeline_refinement`, its
-record in :mod:`besman.learning.pipeline_record`, figures by :mod:`besman.learning.pipeline_plots`),
-:mod:`besman.learning.online` (refining a template's instance in a copy of the world),
-:mod:`besman.learning.dataset_format`, :mod:`~besman.learning.dataset_writer` and
-:mod:`~besman.learning.dataset_reader` (LeRobot v3.0 datasets, written an episode at a time and read back) and
-:mod:`besman.learning.throwing_experiment` (the paper's skill-template experiment, besman's outcome template
-and the field, judged by
-:mod:`besman.learning.throwing_claims`, drawn by :mod:`besman.learning.throwing_plots`;
-:mod:`besman.learning.figures` writes PNGs).
+- :mod:`besman.learning.segmentation` - recordings smoothed, cut into movements and holds by Bayesian
+  change-point inference, and labelled into building blocks.
+- :mod:`besman.learning.pipeline` - ``besman learn``: the blocks imitated as primitives, retargeted, refined
+  and generalised into a skill template pool.
+- :mod:`besman.learning.search` - policy search (CMA-ES, xNES, optimisers by name), sequences of blocks
+  refined together (hierarchical credit assignment), contextual search, outcome-space refinement, the
+  feasibility guard and online refinement.
+
+Beside them: :mod:`besman.learning.template_selection` (a template's kernel by outcomes at held-out targets)
+and :mod:`besman.learning.figures` (PNGs written atomically). LeRobot datasets are :mod:`besman.datasets`'s;
+the throwing experiment is :mod:`besman.experiments.throwing`'s.
 """
 
-from besman.learning.contextual_search import contextual_search
-from besman.learning.policy_search import policy_search
-from besman.skills.lazy import lazy_names
+from besman.core.lazy import lazy_names
+from besman.learning.search.contextual import contextual_search
+from besman.learning.search.policy_search import policy_search
 
 # Where each name lives; imported on first use, so that one module of the package (the recordings' loader,
 # the online refinement a tree leaf uses) does not bring scipy and scikit-learn with it. The two functions
 # named as their modules are imported above: importing a module binds its name in the package, over a lazy
 # name.
 _HOMES = {
-    "CMAES": "policy_search",
-    "CREPS": "contextual_search",
-    "XNES": "policy_search",
-    "ContextBox": "contextual_search",
-    "ContextualCMAES": "contextual_search",
-    "Demonstration": "demonstration",
-    "DemonstrationError": "demonstration",
-    "DemonstrationSegment": "labelling",
-    "Segment": "demonstration",
-    "SegmentModel": "changepoints",
-    "Segmentation": "segmentation",
-    "SegmentationPrior": "changepoints",
-    "SequenceResult": "sequences",
-    "SmoothingConfig": "preprocessing",
-    "WarmStart": "policy_search",
-    "cluster": "labelling",
-    "ground_truth_segments": "labelling",
-    "grouping_accuracy": "labelling",
-    "hand_pose": "preprocessing",
-    "imitate": "imitation",
-    "label_few_shot": "labelling",
-    "load": "demonstration",
-    "make_optimizer": "policy_search",
-    "refine_sequence": "sequences",
-    "resample": "preprocessing",
-    "segment": "segmentation",
-    "segments_of": "labelling",
-    "smooth": "preprocessing",
+    "CMAES": "besman.learning.search.policy_search",
+    "CREPS": "besman.learning.search.contextual",
+    "XNES": "besman.learning.search.policy_search",
+    "ContextBox": "besman.learning.search.contextual",
+    "ContextualCMAES": "besman.learning.search.contextual",
+    "Demonstration": "besman.learning.segmentation.demonstration",
+    "DemonstrationError": "besman.learning.segmentation.demonstration",
+    "DemonstrationSegment": "besman.learning.segmentation.labelling",
+    "Segment": "besman.learning.segmentation.demonstration",
+    "SegmentModel": "besman.learning.segmentation.changepoints",
+    "Segmentation": "besman.learning.segmentation.segmenter",
+    "SegmentationPrior": "besman.learning.segmentation.changepoints",
+    "SequenceResult": "besman.learning.search.hierarchical",
+    "SmoothingConfig": "besman.learning.segmentation.preprocessing",
+    "WarmStart": "besman.learning.search.policy_search",
+    "cluster": "besman.learning.segmentation.labelling",
+    "ground_truth_segments": "besman.learning.segmentation.labelling",
+    "grouping_accuracy": "besman.learning.segmentation.labelling",
+    "hand_pose": "besman.learning.segmentation.preprocessing",
+    "imitate": "besman.learning.pipeline.imitation",
+    "label_few_shot": "besman.learning.segmentation.labelling",
+    "load": "besman.learning.segmentation.demonstration",
+    "make_optimizer": "besman.learning.search.policy_search",
+    "refine_sequence": "besman.learning.search.hierarchical",
+    "resample": "besman.learning.segmentation.preprocessing",
+    "segment": "besman.learning.segmentation.segmenter",
+    "segments_of": "besman.learning.segmentation.labelling",
+    "smooth": "besman.learning.segmentation.preprocessing",
 }
 __all__ = ["contextual_search", "policy_search", *_HOMES]
 

@@ -14,7 +14,7 @@ import matplotlib
 matplotlib.use("Agg")  # files only, no display
 import matplotlib.pyplot as plt
 
-from besman.skills.storage import write_atomically
+from besman.core.storage import write_atomically
 
 
 def save_png(figure: plt.Figure, path: str | Path, dpi: int = 100) -> Path:

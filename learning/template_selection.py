@@ -8,7 +8,7 @@ rollout per target and candidate, counted by the caller); the candidate whose pr
 average wins (ties: the first; the candidates are ordered from cautious to bold).
 
 The targets are held out from training and evaluation alike, and half of them lie on the box's edges
-(:func:`besman.learning.throwing_bench.validation_targets`): leave-one-out, the first choice, tested
+(:func:`besman.experiments.throwing.bench.validation_targets`): leave-one-out, the first choice, tested
 interpolation inside the training tasks' hull only and so rewarded kernels whose negative weights extrapolate
 the training thetas' null-space drift at the box's edges (``../shared/reference/learning.md`` section 3c).
 With a single training task every candidate predicts its theta, so the default kernel is used without a
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from besman.skills.shared_kernel import SharedKernel
-from besman.skills.tasks import TaskBounds
+from besman.skills.task_bounds import TaskBounds
 from besman.skills.template_models import KrigingWeights
 
 # Convex mixtures before extrapolating kriging, long length scales before short, smoothing before

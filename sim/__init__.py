@@ -9,14 +9,13 @@
   (:mod:`besman.sim.faults`); :mod:`besman.sim.references` turns primitives into joint references.
 - :mod:`besman.sim.primitives`, :mod:`besman.sim.manipulation` - movement primitives from goals; pick and
   place planning.
-- :mod:`besman.sim.throwing` - the PA-10's throws, evaluated in batches (:mod:`besman.sim.evaluation`:
-  local cores or Ray); the tasks themselves, pick and place's batched episodes among them, are in
-  :mod:`besman.tasks`.
+- :mod:`besman.sim.evaluation` - candidates evaluated in batches (local cores or Ray); the tasks' batched
+  rollouts themselves are in :mod:`besman.tasks`.
 - :mod:`besman.sim.viewer` - the browser viewer (viser, mjviser): the world posed from the simulation and a
   tree panel; :mod:`besman.sim.serving` - who may open it (its own page only, this machine by default).
 """
 
-from besman.skills.lazy import lazy_names
+from besman.core.lazy import lazy_names
 
 # Where each name lives; imported on first use, so that a light module of the package (its objects) does
 # not bring MuJoCo and the executor with it.
@@ -26,12 +25,9 @@ _HOMES = {
     "Executor": "executor",
     "ExecutorConfig": "executor",
     "MotionStatus": "motions",
-    "TaskBounds": "besman.skills.tasks",
-    "ThrowingConfig": "throwing",
-    "ThrowingTask": "throwing",
+    "TaskBounds": "besman.skills.task_bounds",
     "World": "world",
     "tabletop_world": "world",
-    "throwing_world": "world",
 }
 __all__ = list(_HOMES)
 

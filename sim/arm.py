@@ -17,8 +17,8 @@ import mujoco
 import numpy as np
 
 import besman.robots as robots
+from besman.core.validation import checked, finite_array, instance, items, optional, text
 from besman.sim.world import World
-from besman.skills.validation import checked, finite_array, instance, items, optional, text
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 A task evaluates N parameter vectors theta (one per candidate) in task instances tau and returns an
 :class:`Evaluation`: one reward per candidate and one detail record per rollout. Every task is a
-:class:`BatchedTask`: it implements ``evaluate_locally(thetas, taus)`` (its work in this process), is
+:class:`BatchedRollouts`: it implements ``evaluate_locally(thetas, taus)`` (its work in this process), is
 described by a picklable configuration whose ``build()`` makes the task anywhere, and inherits the one
 ``evaluate`` that checks a batch and runs it. On top of that:
 
@@ -38,10 +38,11 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from besman.core.errors import InputError
+from besman.core.moved import renamed
+from besman.core.validation import finite_array
 from besman.sim import reaper
-from besman.skills.errors import InputError
-from besman.skills.tasks import TaskBounds
-from besman.skills.validation import finite_array
+from besman.skills.task_bounds import TaskBounds
 
 BACKENDS = ("threads", "ray")
 PARENT_CHECK_SECONDS = 0.5  # how often a worker process checks that its parent lives
@@ -79,7 +80,7 @@ def check_backend(backend: str) -> None:
         raise InputError(f"backend must be one of {BACKENDS}, got {backend!r}")
 
 
-class BatchedTask:
+class BatchedRollouts:
     """What every simulated task shares: :meth:`evaluate` checks a batch before any work (finite thetas of
     ``n_params`` entries each, each one a candidate the task can run by :meth:`check_theta`, taus in the
     task's box) and runs it on the backend.
@@ -294,3 +295,6 @@ def evaluate_on_ray(
     config_reference = ray.put(config)
     futures = [remote.remote(config_reference, thetas[part], taus[part]) for part in parts]
     return Evaluation.concatenate(ray.get(futures))
+
+
+__getattr__ = renamed(__name__, {"BatchedTask": "BatchedRollouts"})  # the old name, for one release

@@ -18,16 +18,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from besman.sim.arm import Arm
-from besman.sim.command_log import CommandLog
-from besman.sim.faults import FaultMonitor
-from besman.sim.hand import Hand
-from besman.sim.motions import Chunk, Motion, MotionStatus, Stop
-from besman.sim.references import ReferenceSettings
-from besman.sim.streaming import WORKING, JerkLimitedStream
-from besman.sim.world import World
-from besman.skills.errors import InputError, UnknownNameError
-from besman.skills.validation import (
+from besman.core.errors import InputError, UnknownNameError
+from besman.core.validation import (
     CALLABLE,
     COUNT,
     checked,
@@ -39,6 +31,15 @@ from besman.skills.validation import (
     positive,
     text,
 )
+from besman.sim.arm import Arm
+from besman.sim.command_log import CommandLog
+from besman.sim.executor_config import ExecutorConfig
+from besman.sim.faults import FaultMonitor
+from besman.sim.hand import Hand
+from besman.sim.motions import Chunk, Motion, MotionStatus, Stop
+from besman.sim.references import ReferenceSettings
+from besman.sim.streaming import WORKING, JerkLimitedStream
+from besman.sim.world import World
 
 # The longest chunk :meth:`Executor.run` runs (0.1 s at 500 Hz): what a failure can run on past its cycle.
 RUN_CHUNK = 50
@@ -57,40 +58,6 @@ RUN_CHUNK = 50
     lookahead_cycles=COUNT,
     arrival_timeout=positive,
 )
-@dataclass(frozen=True)
-class ExecutorConfig:
-    """Control rate and tolerances.
-
-    Attributes:
-        control_period: seconds per control cycle (a multiple of the model's timestep).
-        arrival_tolerance: joint error (rad or m) at which a motion's final state counts as reached.
-        lag_tolerance: largest commanded-vs-reference difference before a reference counts as infeasible.
-        following_tolerance: largest actual-vs-commanded joint difference before the robot counts as blocked.
-        ik_position_tolerance, ik_orientation_tolerance: accuracy of the IK solutions of Cartesian references.
-        ik_acceptance: largest remaining (position, orientation) error of a sample that still counts as
-            reached (a joint at its limit can slow the convergence below the tolerance).
-        ik_knot_period: seconds between the IK solutions that a Cartesian reference's spline joins.
-        settle_cycles: cycles a motion waits at its goal for the robot to settle before it succeeds.
-        range_tolerance: how far (rad or m) a reference may pass a joint range (commands are clipped to the
-            range) before it is rejected.
-        lookahead_cycles: how far ahead on a reference each cycle's Ruckig target lies.
-        arrival_timeout: seconds the robot may take to reach a goal after its command got there.
-    """
-
-    control_period: float = 0.002
-    arrival_tolerance: float = 0.01
-    lag_tolerance: float = 0.2
-    following_tolerance: float = 0.15
-    ik_position_tolerance: float = 1e-7
-    ik_orientation_tolerance: float = 1e-6
-    ik_acceptance: tuple[float, float] = (1e-5, 1e-4)
-    ik_knot_period: float = 0.01
-    settle_cycles: int = 25
-    range_tolerance: float = 0.02
-    lookahead_cycles: int = 10
-    arrival_timeout: float = 1.0
-
-
 class Executor:
     """Streams Ruckig-smoothed commands to a world's robot; see the module documentation."""
 
@@ -215,7 +182,7 @@ class Executor:
     @checked(motion=instance(Motion, "a Motion (sim.motions)"))
     def start(self, motion: Motion) -> Motion:
         """Makes ``motion`` the current one (the previous one is replaced where it stands); a motion that
-        cannot start raises (e.g. an :class:`~besman.skills.errors.InputError` for an unreachable pose)."""
+        cannot start raises (e.g. an :class:`~besman.core.errors.InputError` for an unreachable pose)."""
         motion.begin(self)
         self.motion = motion
         return motion

@@ -17,7 +17,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from urllib.parse import urlsplit
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 SIOCGIFADDR = 0x8915  # Linux ioctl: an interface's IPv4 address
 

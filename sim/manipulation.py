@@ -18,6 +18,8 @@ from dataclasses import astuple, dataclass, fields, replace
 
 import numpy as np
 
+from besman.core.errors import InputError
+from besman.core.validation import finite_array
 from besman.sim.arm import Arm
 from besman.sim.legs import Leg, hand_yaw, plan_leg, pose_configurations, site_path
 from besman.sim.misses import Misses, PlanningError
@@ -26,8 +28,6 @@ from besman.sim.primitives import point_to_point, shaped, straight_line, top_dow
 from besman.sim.references import DEFAULT_SETTINGS, ReferenceSettings, at_rest, joint_reference
 from besman.sim.world import World
 from besman.skills import MovementPrimitive
-from besman.skills.errors import InputError
-from besman.skills.validation import finite_array
 
 # Hand yaws where the orientation is free (an object set down at any yaw): across a pair of faces of an
 # axis-aligned box (0 or 90 deg, up to 15 deg off).

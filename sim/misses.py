@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from besman.skills.errors import BesmanError
+from besman.core.errors import BesmanError
 
 
 class PlanningError(BesmanError):

@@ -25,20 +25,33 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 import ruckig
 
-from besman.sim.references import joint_reference
+from besman.core.errors import InputError
+from besman.sim.arm import Arm
+from besman.sim.executor_config import ExecutorConfig
+from besman.sim.hand import Hand
+from besman.sim.references import ReferenceSettings, joint_reference
+from besman.sim.streaming import JerkLimitedStream
 from besman.skills import MovementPrimitive, Trajectory
-from besman.skills.errors import InputError
-
-if TYPE_CHECKING:
-    from besman.sim.executor import Executor, ExecutorConfig
 
 AT_REST = 1e-6  # commanded speed and acceleration below which a command is at rest
 AT_GOAL = 1e-6  # commanded distance (rad or m) at which a command is at its goal
+
+
+class Driver(Protocol):
+    """What a motion uses of the executor that runs it (:class:`~besman.sim.executor.Executor`): the arm, the
+    settings, the hand and the two command streams."""
+
+    arm: Arm
+    config: ExecutorConfig
+    hand: Hand | None
+    stream: JerkLimitedStream
+    gripper_stream: JerkLimitedStream | None
+    reference_settings: ReferenceSettings
 
 
 class MotionStatus(Enum):
@@ -106,14 +119,14 @@ class Motion:
         self.ended = self.cycles if cycle is None else cycle
         return status
 
-    def begin(self, executor: Executor) -> None:
+    def begin(self, executor: Driver) -> None:
         """Prepares the motion when it starts (checks, conversions); may finish it as FAILED."""
 
-    def command(self, executor: Executor) -> ruckig.Result:
+    def command(self, executor: Driver) -> ruckig.Result:
         """Advances the commanded state by cycle ``self.cycles`` (already counted)."""
         raise NotImplementedError
 
-    def judge(self, executor: Executor, chunk: Chunk) -> None:
+    def judge(self, executor: Driver, chunk: Chunk) -> None:
         """Goes through the chunk's cycles in order and ends the motion at the first that decides it."""
         raise NotImplementedError
 
@@ -129,13 +142,13 @@ class Motion:
 
     # -- shared judgements, vectorised over a chunk --------------------------------------------------------
 
-    def blocked_at(self, executor: Executor, chunk: Chunk) -> int | None:
+    def blocked_at(self, executor: Driver, chunk: Chunk) -> int | None:
         """The first row where a joint is further behind its command than ``following_tolerance``."""
         behind = np.abs(chunk.measured - chunk.commanded)
         rows = np.flatnonzero(behind.max(axis=1) > executor.config.following_tolerance)
         return int(rows[0]) if rows.size else None
 
-    def fail_blocked(self, executor: Executor, chunk: Chunk, row: int) -> None:
+    def fail_blocked(self, executor: Driver, chunk: Chunk, row: int) -> None:
         behind = np.abs(chunk.measured[row] - chunk.commanded[row])
         joint = executor.arm.joints[int(behind.argmax())]
         self.finish(
@@ -145,7 +158,7 @@ class Motion:
         )
 
     def settle(
-        self, executor: Executor, chunk: Chunk, goal: np.ndarray, done: np.ndarray, until: int | None
+        self, executor: Driver, chunk: Chunk, goal: np.ndarray, done: np.ndarray, until: int | None
     ) -> None:
         """Cycle by cycle up to row ``until`` (None: all), where a cycle before ``until`` is fine otherwise:
         succeeds once the command is at ``goal`` (and ``done``) and the robot has stayed within
@@ -190,7 +203,7 @@ class FollowReference(Motion):
     _targets: list = field(default_factory=list, init=False, repr=False)
     _rest: tuple = field(default=(), init=False, repr=False)  # at rest at the last position
 
-    def begin(self, executor: Executor) -> None:
+    def begin(self, executor: Driver) -> None:
         arm, reference = executor.arm, self.reference
         if reference.positions.shape[1:] != (arm.dofs,):
             raise InputError(f"reference for {arm.dofs} joints expected, got {reference.positions.shape}")
@@ -209,7 +222,7 @@ class FollowReference(Motion):
         zeros = np.zeros(arm.dofs)
         self._rest = tuple(a.tolist() for a in executor.stream.feasible(positions[-1], zeros, zeros))
 
-    def command(self, executor: Executor) -> ruckig.Result:
+    def command(self, executor: Driver) -> ruckig.Result:
         # Aim at the reference a few cycles ahead, to be reached exactly then: Ruckig plans a smooth
         # approach of that state instead of a bang-bang chase of the next sample.
         last = len(self._targets) - 1
@@ -227,7 +240,7 @@ class FollowReference(Motion):
         to_end = max(0, len(self._targets) - 1 - self.cycles - 1)
         return to_end + self._cycles_to_settle(config)
 
-    def judge(self, executor: Executor, chunk: Chunk) -> None:
+    def judge(self, executor: Driver, chunk: Chunk) -> None:
         positions = self.reference.positions
         last = len(positions) - 1
         cycles = np.arange(chunk.first, chunk.first + len(chunk))
@@ -256,7 +269,7 @@ GUARD_CYCLES = 5  # control cycles between the checks of a guarded motion's cont
 class FollowPrimitive(FollowReference):
     """Execute ``primitive``: its joint reference, made when the motion starts in the commanded state.
 
-    Starting raises an :class:`~besman.skills.errors.InputError` for a primitive the arm cannot execute (an
+    Starting raises an :class:`~besman.core.errors.InputError` for a primitive the arm cannot execute (an
     unreachable Cartesian pose, a joint primitive of the wrong size). With ``untouched`` (an object's name)
     it is guarded: as soon as the robot touches that object (checked every :data:`GUARD_CYCLES`) it brakes
     within the limits and fails once at rest, as a hand coming down around an object that is not where it
@@ -268,20 +281,20 @@ class FollowPrimitive(FollowReference):
         self.untouched = untouched
         self.touched = False
 
-    def begin(self, executor: Executor) -> None:
+    def begin(self, executor: Driver) -> None:
         self.reference = joint_reference(
             executor.arm, self.primitive, executor.stream.state(), executor.reference_settings
         )
         super().begin(executor)
 
-    def command(self, executor: Executor) -> ruckig.Result:
+    def command(self, executor: Driver) -> ruckig.Result:
         return executor.stream.brake() if self.touched else super().command(executor)
 
     def cycles_before_success(self, config: ExecutorConfig) -> int:
         cycles = super().cycles_before_success(config)
         return cycles if self.untouched is None else min(cycles, GUARD_CYCLES)
 
-    def judge(self, executor: Executor, chunk: Chunk) -> None:
+    def judge(self, executor: Driver, chunk: Chunk) -> None:
         if self.touched:
             rest = np.flatnonzero(chunk.at_rest)
             if rest.size:
@@ -302,16 +315,16 @@ class MoveTo(Motion):
 
     target: np.ndarray = None  # type: ignore[assignment]
 
-    def begin(self, executor: Executor) -> None:
+    def begin(self, executor: Driver) -> None:
         self.target = np.clip(np.asarray(self.target, dtype=float), executor.arm.lower, executor.arm.upper)
 
-    def command(self, executor: Executor) -> ruckig.Result:
+    def command(self, executor: Driver) -> ruckig.Result:
         return executor.stream.track(self.target)
 
     def cycles_before_success(self, config: ExecutorConfig) -> int:
         return self._cycles_to_settle(config)
 
-    def judge(self, executor: Executor, chunk: Chunk) -> None:
+    def judge(self, executor: Driver, chunk: Chunk) -> None:
         blocked = self.blocked_at(executor, chunk)
         self.settle(executor, chunk, self.target, chunk.at_rest, until=blocked)
         if self.status is MotionStatus.RUNNING and blocked is not None:
@@ -329,7 +342,7 @@ class TrackTarget(Motion):
     _gripper: tuple | None = field(default=None, init=False, repr=False)  # its feasible Ruckig target
     moves_gripper: ClassVar[bool] = True
 
-    def begin(self, executor: Executor) -> None:
+    def begin(self, executor: Driver) -> None:
         self.target = np.clip(np.asarray(self.target, dtype=float), executor.arm.lower, executor.arm.upper)
         self.moves_gripper = executor.hand is not None  # an arm without a gripper records none
         if self.opening is not None and executor.hand is not None:
@@ -337,12 +350,12 @@ class TrackTarget(Motion):
             goal = float(np.clip(self.opening, gripper.lower, gripper.upper))
             self._gripper = executor.gripper_stream.feasible([goal], [0.0], [0.0])
 
-    def command(self, executor: Executor) -> ruckig.Result:
+    def command(self, executor: Driver) -> ruckig.Result:
         if self._gripper is not None:
             executor.gripper_stream.track_feasible(*self._gripper)
         return executor.stream.track(self.target)
 
-    def judge(self, executor: Executor, chunk: Chunk) -> None:
+    def judge(self, executor: Driver, chunk: Chunk) -> None:
         blocked = self.blocked_at(executor, chunk)
         if blocked is not None:
             self.fail_blocked(executor, chunk, blocked)
@@ -362,7 +375,7 @@ class GripperMotion(Motion):
     _fingers: np.ndarray | None = field(default=None, init=False, repr=False)  # positions of recent cycles
     moves_gripper: ClassVar[bool] = True
 
-    def begin(self, executor: Executor) -> None:
+    def begin(self, executor: Driver) -> None:
         if executor.hand is None:
             raise InputError("the executor has no gripper")
         gripper = executor.arm.gripper
@@ -370,7 +383,7 @@ class GripperMotion(Motion):
         self._goal = float(np.clip(wanted, gripper.lower, gripper.upper))
         self._target = tuple(a.tolist() for a in executor.gripper_stream.feasible([self._goal], [0.0], [0.0]))
 
-    def command(self, executor: Executor) -> ruckig.Result:
+    def command(self, executor: Driver) -> ruckig.Result:
         result = executor.stream.brake()  # the arm holds still (braking first if it was moving)
         executor.gripper_stream.track_feasible(*self._target)
         return result
@@ -378,7 +391,7 @@ class GripperMotion(Motion):
     def cycles_before_success(self, config: ExecutorConfig) -> int:
         return self._cycles_to_settle(config)  # the fingers settle over a window of settle_cycles
 
-    def judge(self, executor: Executor, chunk: Chunk) -> None:
+    def judge(self, executor: Driver, chunk: Chunk) -> None:
         blocked = self.blocked_at(executor, chunk)
         opening, speed = chunk.gripper[:, 0], chunk.gripper[:, 1]
         closed_on_limit = self._goal <= executor.gripper_stream.lower[0] + 1e-9
@@ -409,10 +422,10 @@ class GripperMotion(Motion):
 class Stop(Motion):
     """Brake to rest within the limits."""
 
-    def command(self, executor: Executor) -> ruckig.Result:
+    def command(self, executor: Driver) -> ruckig.Result:
         return executor.stream.brake()
 
-    def judge(self, executor: Executor, chunk: Chunk) -> None:
+    def judge(self, executor: Driver, chunk: Chunk) -> None:
         rest = np.flatnonzero(chunk.at_rest)
         if rest.size:
             self.finish(MotionStatus.SUCCEEDED, "stopped", chunk.first + int(rest[0]))

@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 SHAPES = ("box", "cylinder")
 FINGER_CLEARANCE = 0.005  # m the open fingers keep from the object on each side as they descend around it

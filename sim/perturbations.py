@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 if TYPE_CHECKING:  # tasks declare their perturbations at import, which must stay light
     from besman.robots.kinematics import Pose

@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import ruckig
 
+from besman.core.errors import InputError
 from besman.sim.arm import Arm
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, quaternion
-from besman.skills.errors import InputError
 from besman.skills.transformation import minimum_jerk
 
 if TYPE_CHECKING:

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from besman.core.errors import InputError
 from besman.sim.arm import Arm
 from besman.skills import CartesianDMP, MovementPrimitive, Trajectory
-from besman.skills.errors import InputError
 
 SLOWDOWN_MARGIN = 1.02  # slow down a little more than the worst joint needs: the limits are then met
 
@@ -56,7 +56,7 @@ def joint_reference(
 ) -> Trajectory:
     """The joint reference of ``primitive`` for ``arm``, started in ``state`` (position, velocity,
     acceleration); see the module documentation. An unreachable Cartesian pose or a joint primitive of the
-    wrong size raises an :class:`~besman.skills.errors.InputError` that says why."""
+    wrong size raises an :class:`~besman.core.errors.InputError` that says why."""
     dmp = primitive.dmp
     if not isinstance(dmp, CartesianDMP) and dmp.n_dims != arm.dofs:
         raise InputError(

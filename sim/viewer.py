@@ -26,10 +26,10 @@ from collections.abc import Callable, Iterable
 import mujoco
 from mjviser import ViserMujocoScene
 
+from besman.core.errors import InputError
 from besman.sim import hosts, serving
 from besman.sim.arm import Arm
 from besman.sim.overlays import Overlays
-from besman.skills.errors import InputError
 
 # s of wall time the browser may go without a frame during a run: >= 30 frames per second, with a margin
 MAX_FRAME_GAP = 1.0 / 32.0

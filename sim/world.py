@@ -2,12 +2,12 @@
 
 A :class:`World` owns one compiled model, one ``MjData`` and the robot's description compiled against the
 composed model (so group indices are right even after objects are added). It resets to a keyframe, and
-reads and places objects by name. Two worlds are provided:
+reads and places objects by name. A task builds its world from one (the throwing task's:
+:mod:`besman.tasks.throwing.world`) or uses:
 
 - :func:`tabletop_world` - a robot (AILA by default) in front of a table with a raised shelf board on its
   right side, both where the robot's description puts them (its tabletop layout: AILA's table top at
   0.78 m, the shelf at 0.90 m), and graspable objects (a 6 cm wooden-like box of 0.2 kg by default).
-- :func:`throwing_world` - the PA-10 on a floor, holding its ball, with a sensor of the ball's position.
 
 Objects are free bodies; their poses are (x, y, z) plus a (w, x, y, z) quaternion.
 """
@@ -21,13 +21,13 @@ import mujoco
 import numpy as np
 
 import besman.robots as robots
+from besman.core.errors import InputError, UnknownNameError
+from besman.core.validation import checked, instance, items, number, text
 from besman.robots import Pose, Robot, RobotDescription
 from besman.robots.catalogue import ROBOT
 from besman.robots.tabletop import Board, TabletopLayout
 from besman.sim.objects import GraspableObject
 from besman.sim.perturbations import Perception
-from besman.skills.errors import InputError, UnknownNameError
-from besman.skills.validation import checked, instance, items, number, text
 
 DEFAULT_BOX = GraspableObject("box")
 
@@ -220,26 +220,3 @@ def tabletop_world(objects: tuple[GraspableObject, ...] = (DEFAULT_BOX,), robot:
     for index, item in enumerate(objects):
         _add_object(spec, item, [start[0], start[1] + 0.15 * index, table.height + item.half_height])
     return World(description, spec, tuple(objects), (table, shelf), layout)
-
-
-def throwing_world() -> World:
-    """The PA-10 scene: the arm on a floor with the ball welded in its hand."""
-    pa10 = robots.describe("pa10")
-    spec = robots.build_spec(pa10)
-    spec.add_sensor(
-        name="ball_position",
-        type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
-        objtype=mujoco.mjtObj.mjOBJ_XBODY,
-        objname="ball",
-    )
-    # How many contacts the ball has with the robot (the subtree of its base), every step.
-    touch = spec.add_sensor(
-        name="ball_touches_robot",
-        type=mujoco.mjtSensor.mjSENS_CONTACT,
-        objtype=mujoco.mjtObj.mjOBJ_BODY,
-        objname="ball",
-        reftype=mujoco.mjtObj.mjOBJ_XBODY,
-        refname="base_link",
-    )
-    touch.intprm[:3] = [1, 0, 1]  # data "found", no reduction, one slot
-    return World(pa10, spec)

@@ -28,11 +28,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from besman.core.errors import InputError
+from besman.core.validation import broadcast_vector, checked, finite_array, increasing_times
 from besman.skills import quaternion
 from besman.skills.dmp import DEFAULT_SETTINGS, DMP
 from besman.skills.dmp_core import DMPSettings, fit_weights
-from besman.skills.errors import InputError
-from besman.skills.validation import broadcast_vector, checked, finite_array, increasing_times
 
 STEP_FRACTION = 1.0 / 1000.0  # internal orientation step ~ tau / 1000 (output steps are split evenly)
 

@@ -33,11 +33,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from besman.core.errors import InputError
+from besman.core.validation import broadcast_vector, checked, finite_array, increasing_times, positive
 from besman.skills.dmp_core import DMPSettings, fit_weights
-from besman.skills.errors import InputError
 from besman.skills.forcing import ForcingBasis
 from besman.skills.transformation import TransformationSystem, moving_goal_basis
-from besman.skills.validation import broadcast_vector, checked, finite_array, increasing_times, positive
 
 DEFAULT_SETTINGS = DMPSettings()
 MAX_STEPS = 20_000  # time steps of one generated trajectory (20 s at 1 ms)

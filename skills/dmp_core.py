@@ -23,9 +23,9 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from besman.core.validation import checked
 from besman.skills.forcing import ForcingBasis
 from besman.skills.transformation import TransformationSystem
-from besman.skills.validation import checked
 
 
 @checked()  # an unknown keyword is named, with the nearest known one

@@ -22,8 +22,8 @@ from functools import cached_property
 
 import numpy as np
 
-from besman.skills.errors import InputError
-from besman.skills.validation import checked
+from besman.core.errors import InputError
+from besman.core.validation import checked
 
 
 @checked()  # an unknown keyword is named, with the nearest known one

@@ -36,11 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from besman.skills.errors import BesmanError, UnknownNameError
-from besman.skills.primitive import primitive_from_parts, primitive_parts
-from besman.skills.reading import read_bytes
-from besman.skills.shared_kernel import SharedKernel
-from besman.skills.storage import (
+from besman.core.errors import BesmanError, UnknownNameError
+from besman.core.reading import read_bytes
+from besman.core.storage import (
     JSON_BYTES,
     check_schema_version,
     npz_bytes,
@@ -50,9 +48,11 @@ from besman.skills.storage import (
     sha256,
     write_atomically,
 )
-from besman.skills.tasks import TaskBounds
+from besman.core.validation import PATH, checked, instance
+from besman.skills.primitive import primitive_from_parts, primitive_parts
+from besman.skills.shared_kernel import SharedKernel
+from besman.skills.task_bounds import TaskBounds
 from besman.skills.template import EXPLORATIONS, SkillTemplate
-from besman.skills.validation import PATH, checked, instance
 
 SCHEMA_VERSION = 2
 READABLE_VERSIONS = (1, 2)  # version 1: per-dimension templates, before the model was stored

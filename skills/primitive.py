@@ -20,11 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from besman.skills.cartesian_dmp import CartesianDMP
-from besman.skills.dmp import DMP
-from besman.skills.dmp_core import DMPSettings, Primitive
-from besman.skills.errors import InputError
-from besman.skills.storage import (
+from besman.core.errors import InputError
+from besman.core.storage import (
     check_schema_version,
     npz_bytes,
     optional_field,
@@ -34,7 +31,10 @@ from besman.skills.storage import (
     sha256,
     write_atomically,
 )
-from besman.skills.validation import PATH, checked, instance, optional, text
+from besman.core.validation import PATH, checked, instance, optional, text
+from besman.skills.cartesian_dmp import CartesianDMP
+from besman.skills.dmp import DMP
+from besman.skills.dmp_core import DMPSettings, Primitive
 
 SCHEMA_VERSION = 1
 SPACES = ("joint", "cartesian")

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from besman.skills.errors import InputError
-from besman.skills.validation import finite_array
+from besman.core.errors import InputError
+from besman.core.validation import finite_array
 
 
 def normalized(name: str, q) -> np.ndarray:

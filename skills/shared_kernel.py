@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 WEIGHT_FORMS = ("kriging", "convex")
 

@@ -41,11 +41,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
+from besman.core.validation import COUNT, SEED, checked, finite_array, instance, text
 from besman.skills.primitive import MovementPrimitive
 from besman.skills.shared_kernel import SharedKernel
-from besman.skills.tasks import TaskBounds
-from besman.skills.validation import COUNT, SEED, checked, finite_array, instance, text
+from besman.skills.task_bounds import TaskBounds
 
 if TYPE_CHECKING:
     from besman.skills.template_models import PerDimensionModel, SharedKernelModel

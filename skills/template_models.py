@@ -61,10 +61,10 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, WhiteKernel
 
-from besman.skills.errors import InputError
-from besman.skills.seeds import SEEDS
+from besman.core.errors import InputError
+from besman.core.seeds import SEEDS
+from besman.core.validation import finite_array
 from besman.skills.shared_kernel import SharedKernel
-from besman.skills.validation import finite_array
 
 LENGTH_SCALE_BOUNDS = (0.05, 20.0)  # in box widths
 AMPLITUDE_BOUNDS = (1e-4, 1e2)  # of the standardised outputs

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 from besman.skills.forcing import ForcingBasis
 
 FINE_STEPS_PER_MOVEMENT = 16384

@@ -8,7 +8,7 @@ package - a module that defines ``TASKS`` (a tuple of tasks) is registered as it
 is adding its module - and those of installed distributions that name a module with ``TASKS`` under the
 entry point group ``besman.tasks`` (the documentation's "Add a task" page); a plugin that does not load, or
 a task of one whose name is taken (besman's own tasks keep theirs), is left out with a
-:class:`~besman.skills.errors.PluginWarning` naming its distribution. A demo is a task run with its
+:class:`~besman.core.errors.PluginWarning` naming its distribution. A demo is a task run with its
 default tree and a seed (:mod:`besman.tasks.running`); a run recorded as a dataset's episode is
 :mod:`besman.tasks.recording`'s.
 
@@ -22,8 +22,8 @@ import pkgutil
 from collections.abc import Iterator
 from types import ModuleType
 
-from besman.skills.errors import UnknownNameError
-from besman.skills.plugins import plugin_modules, warn_plugin
+from besman.core.errors import UnknownNameError
+from besman.core.plugins import plugin_modules, warn_plugin
 from besman.tasks.base import Task
 
 DEFAULT = "pick-place"  # the task of ``besman demo`` without a name, and of ``besman learn``
@@ -43,7 +43,7 @@ def _builtin() -> Iterator[ModuleType]:
 
 def _plugins() -> Iterator[tuple[str, tuple[Task, ...]]]:
     """(who, tasks) of each module that other distributions name (:data:`ENTRY_POINTS`); one whose
-    ``TASKS`` is not a tuple of tasks is warned of and left out (:mod:`besman.skills.plugins`)."""
+    ``TASKS`` is not a tuple of tasks is warned of and left out (:mod:`besman.core.plugins`)."""
     for who, module in plugin_modules(ENTRY_POINTS, "task"):
         entries = tuple(getattr(module, "TASKS", ()))
         wrong = [

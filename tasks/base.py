@@ -26,9 +26,9 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from besman import examples
-from besman.skills.errors import InputError, UnknownNameError
-from besman.skills.tasks import TaskBounds
-from besman.skills.validation import shown
+from besman.core.errors import InputError, UnknownNameError
+from besman.core.validation import shown
+from besman.skills.task_bounds import TaskBounds
 
 if TYPE_CHECKING:
     from besman.sim.perturbations import Perturbations
@@ -139,13 +139,14 @@ class Task:
         return self.split(middle)
 
     def batched(self, robot: str):
-        """The task as a :class:`~besman.sim.evaluation.BatchedTask` (thetas of a scripted plan, taus) for
+        """The task as a :class:`~besman.sim.evaluation.BatchedRollouts` (thetas of a scripted plan, taus) for
         policy search, or None if the task has no scripted plan."""
         return None
 
     def building_blocks(self, robot: str):
         """The blocks that learning imitates and refines for this task on ``robot``
-        (:class:`~besman.learning.blocks.BuildingBlocks`), or None if the task learns none."""
+        (:class:`~besman.learning.pipeline.building_blocks.BuildingBlocks`), or None if the task learns
+        none."""
         return None
 
     def facts(self, robot: str) -> dict:

@@ -17,7 +17,7 @@ or ``gymnasium.make("besman/pick-place")`` (:func:`register_environments`).
   - ``"throw"``, the throwing tasks' only control (a task declares the controls it takes,
     ``Task.controls``): one step per episode whose action is the throw's parameters theta (the paper's DMP
     weights and goal), run until the ball lands. The throw is not
-    Ruckig-smoothed (smoothing moves where the ball lands: :mod:`besman.sim.throw_execution`).
+    Ruckig-smoothed (smoothing moves where the ball lands: :mod:`besman.tasks.throwing.executor`).
 
 - Reward 1 when the task is done by its own rule (as ``besman run`` judges a run), else 0; the episode then
   terminates. The rules let a released object settle (0.3 s), so the task is judged every ``judge_every``
@@ -40,7 +40,7 @@ try:
 except ImportError as error:  # the optional extra
     raise ImportError("besman.tasks.environment needs gymnasium: pip install 'besman[gym]'") from error
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 from besman.tasks import TASKS
 from besman.tasks import task as find_task
 from besman.tasks.frames import RobotFrames, SceneCamera

@@ -24,9 +24,9 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from besman.core.errors import InputError
 from besman.sim.objects import GraspableObject
-from besman.skills.errors import InputError
-from besman.skills.tasks import TaskBounds
+from besman.skills.task_bounds import TaskBounds
 from besman.tasks.base import Scene, Task, TaskValue
 
 if TYPE_CHECKING:

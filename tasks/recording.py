@@ -1,4 +1,4 @@
-"""Task runs recorded as LeRobot v3.0 episodes (:mod:`besman.learning.dataset_writer`): ``besman run`` and
+"""Task runs recorded as LeRobot v3.0 episodes (:mod:`besman.datasets.writer`): ``besman run`` and
 ``besman demo`` with ``--dataset DIR``, and ``besman record`` (a task over N seeds).
 
 One frame per tick of the tree (the runner's rate, 50 Hz: where the tree decides; the executor's 500 Hz
@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from besman.learning.dataset_writer import DatasetSpec, DatasetWriter, Episode
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
+from besman.datasets.writer import DatasetSpec, DatasetWriter, Episode
 from besman.tasks import task as find_task
 from besman.tasks.frames import RobotFrames, SceneCamera
 from besman.tasks.running import observers, prepare
@@ -119,7 +119,7 @@ def record_run(
 def recorded_seeds(dataset: str | Path, task: str, robot: str) -> set[int]:
     """The seeds of the dataset's episodes of ``task`` on ``robot`` (none if there is no dataset yet); a
     dataset of another task or robot is refused."""
-    from besman.learning.dataset_reader import read_dataset
+    from besman.datasets.reader import read_dataset
 
     if not (Path(dataset) / "meta" / "info.json").exists():
         return set()

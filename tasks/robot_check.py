@@ -2,25 +2,22 @@
 
 ``besman robots check ROBOT`` runs these on each arm with a gripper and prints a line per check with its
 verdict, what it measured and what to change: what a user bringing an arm would otherwise find one failed
-demo at a time.
+demo at a time. Then each task of the registry checks what it needs of the robot itself
+(:meth:`~besman.tasks.base.Task.robot_checks`, with :class:`Finding` and the helpers here): pick and
+place the home, the reach of its areas and one run (:mod:`besman.tasks.pick_place.robot_checks`), the
+handover the bar held by one end (:meth:`~besman.tasks.handover.Handover.robot_checks`).
 
-- **home**: the home keyframe points the first arm's hand down (the tool frame's z axis): its planner starts
-  inverse kinematics there.
 - **tool frame**: its y axis runs along the fingers' closing, and it sits between the fingertips: the
   planner grasps 1 cm above an object's centre, so the fingertips must not reach the table under the task's
   object (nor further than :data:`~besman.sim.manipulation.FINGER_DEPTH`, which its approach allows for)
   and the pads must cover at least :data:`PAD_OVERLAP` of the object's height.
 - **gripper**: opening and closing moves the pads of both sides; at its ``open`` opening the pads are as far
   apart as the opening table says.
-- **holds**: the pads close on the task's object from both sides, and hold it up against its weight.
-- **reach**: the first arm reaches the task's object area (on the table) and place area (on the shelf)
-  top-down, at their corners and middles.
+- **holds**: the pads close on the task's object (pick and place's 6 cm box, :func:`checked_object`) from
+  both sides, and hold it up against its weight.
+- **integrator**: every joint of the arm and its gripper is stable under the model's integrator.
 - **limits**: every joint follows a move at its velocity, acceleration and jerk limits within half the
   executor's following tolerance (a position actuator lags its command by its speed times kv / kp).
-- **pick-place**: the first arm picks the task's object at the middle of the object area and places it at
-  the middle of the place area.
-- **handover** (a robot the handover fits): the left hand holds the bar by one end, where the task's
-  ``grip`` says, without it turning on in the grip.
 """
 
 from __future__ import annotations

@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 import py_trees
 
+from besman.core.errors import InputError
+from besman.core.seeds import child_seed
+from besman.core.validation import CALLABLE, PATH, SEED, checked, instance, optional, positive, text
 from besman.robots.catalogue import ROBOT
 from besman.sim.perturbations import check_mode
-from besman.skills.errors import InputError
-from besman.skills.seeds import child_seed
-from besman.skills.validation import CALLABLE, PATH, SEED, checked, instance, optional, positive, text
 from besman.tasks import task as find_task
 from besman.tasks.base import Observer, Task
 from besman.trees.blackboard import set_task_values, task_keys_read

@@ -34,8 +34,8 @@ import threading
 import numpy as np
 from py_trees.common import Status
 
+from besman.core.errors import InputError
 from besman.sim.viewer import Viewer, within
-from besman.skills.errors import InputError
 from besman.tasks import task as find_task
 from besman.tasks.running import TaskRun, TreeSource, observers, prepare
 from besman.trees.files import tree_task

@@ -24,10 +24,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from besman.skills.errors import InputError
-from besman.skills.tasks import TaskBounds
+from besman.core.errors import InputError
+from besman.skills.task_bounds import TaskBounds
 from besman.tasks.base import Scene, Task, TaskValue
-from besman.tasks.pick_place import areas, family, one_hand_tabletop
+from besman.tasks.pick_place.scene import areas, family, one_hand_tabletop
 
 BOXES = {"red": (0.80, 0.15, 0.12, 1.0), "green": (0.20, 0.62, 0.25, 1.0), "blue": (0.15, 0.35, 0.80, 1.0)}
 SIDE = 0.06  # m: the boxes are cubes this size, or as wide as the robot's gripper holds (if less)

@@ -24,10 +24,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from besman.skills.seeds import child_seed
-from besman.skills.tasks import TaskBounds
+from besman.core.seeds import child_seed
+from besman.skills.task_bounds import TaskBounds
 from besman.tasks.base import Scene, Task, TaskValue
-from besman.tasks.pick_place import first_hand
+from besman.tasks.pick_place.scene import first_hand
 
 BOXES = {"red": (0.80, 0.15, 0.12, 1.0), "green": (0.20, 0.62, 0.25, 1.0), "blue": (0.15, 0.35, 0.80, 1.0)}
 ORDERS = tuple(itertools.permutations(BOXES))  # bottom to top

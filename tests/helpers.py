@@ -18,8 +18,8 @@ import numpy as np
 import yaml
 
 from besman.cli import main
+from besman.core.storage import is_temporary
 from besman.sim.reaper import environments
-from besman.skills.storage import is_temporary
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 LEARNED_TREE = Path(__file__).resolve().parents[1] / "examples" / "trees" / "grasp_then_place_learned.yaml"
@@ -363,15 +363,16 @@ def pincer(folder, command, **gripper):
 
 
 def run_within_limits(task: str, seed: int, robot: str) -> tuple:
-    """The seeded run of ``task``'s default tree on ``robot``: its summary and the commands it sent beyond
-    the arm's limits."""
+    """The seeded demo of ``task`` (its default tree) on ``robot``: its summary and, for every arm the run
+    drives (the executor's first, then those in lockstep with it), the commands it sent beyond that arm's
+    limits (:func:`~besman.sim.executor.limit_violations`)."""
     from besman.sim.executor import limit_violations
     from besman.tasks.running import prepare
 
-    prepared = prepare(task, seed=seed, robot=robot)
+    prepared = prepare(task, seed=seed, robot=robot, demo=task)
     summary = prepared.judge(prepared.runner.run())
-    executor = prepared.runner.executor
-    return summary, limit_violations(executor.log, executor)
+    arms = prepared.runner.executor.arms
+    return summary, {name: limit_violations(member.log, member) for name, member in arms.items()}
 
 
 def follow_page(page: Path, package: Path) -> list[str]:

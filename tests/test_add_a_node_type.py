@@ -10,7 +10,7 @@ import pytest
 from helpers import follow_page, install_plugin
 from py_trees.common import Status
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 from besman.trees.base import RoleBehaviour
 from besman.trees.nodes import NODE_TYPES, register_node_type
 

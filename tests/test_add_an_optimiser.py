@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from helpers import follow_page, install_plugin, run_cli
 
-from besman.learning.policy_search import (
+from besman.core.errors import InputError
+from besman.learning.search.policy_search import (
     CMAES,
     OPTIMIZERS,
     WarmStart,
@@ -18,7 +19,6 @@ from besman.learning.policy_search import (
     optimizer_names,
     register_optimizer,
 )
-from besman.skills.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "optimizers.md"
@@ -73,7 +73,7 @@ def test_an_unknown_optimiser_is_refused_before_any_work(tmp_path, capsys):
 
 def test_a_broken_optimiser_plugin_is_one_warning_line(tmp_path):
     site = tmp_path / "site"
-    taken = "from besman.learning.policy_search import XNES\nOPTIMIZERS = {'xnes': XNES}\n"
+    taken = "from besman.learning.search.policy_search import XNES\nOPTIMIZERS = {'xnes': XNES}\n"
     plugins = {
         "besman-broken": ("broken_search", "import not_installed_anywhere\n"),
         "besman-taken": ("taken_search", taken),
@@ -82,7 +82,11 @@ def test_a_broken_optimiser_plugin_is_one_warning_line(tmp_path):
         install_plugin(site, dist, "besman.optimizers", module)
         (site / f"{module}.py").write_text(source)
     result = subprocess.run(
-        [sys.executable, "-c", "from besman.learning.policy_search import optimizer_names as n; print(n())"],
+        [
+            sys.executable,
+            "-c",
+            "from besman.learning.search.policy_search import optimizer_names as n; print(n())",
+        ],
         capture_output=True,
         text=True,
         env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"},

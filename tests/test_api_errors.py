@@ -1,6 +1,6 @@
 """The Python API checks its arguments where it is called: a wrong type, a NaN, a count or seed out of
 range, an unknown keyword or option key raises besman's own error (a
-:class:`~besman.skills.errors.BesmanError`) whose message names the function, the parameter and the value
+:class:`~besman.core.errors.BesmanError`) whose message names the function, the parameter and the value
 received, before any work."""
 
 import inspect
@@ -15,8 +15,8 @@ import besman.robots as robots
 import besman.sim as sim
 import besman.skills as skills
 import besman.trees as trees
-from besman.skills.errors import ArgumentTypeError, BesmanError, InputError, UnknownNameError
-from besman.tasks.pick_place.episode import PickPlaceTask
+from besman.core.errors import ArgumentTypeError, BesmanError, InputError, UnknownNameError
+from besman.tasks.pick_place.episode import PickPlaceRollouts
 from besman.tasks.running import prepare, run, run_demo
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,7 +65,11 @@ CASES = [
     ("run_demo(sede=1)", lambda m: run_demo("sort", sede=1), ["run_demo", "'sede'", "did you mean 'seed'"]),
     ("segment(sede=1)", lambda m: learning.segment(m["recording"], sede=1), ["segment", "'sede'", "'seed'"]),
     ("DMPSettings(n_weight=5)", lambda m: skills.DMPSettings(n_weight=5), ["DMPSettings", "'n_weights'"]),
-    ("ThrowingTask(durration=1)", lambda m: sim.ThrowingTask(durration=1.0), ["'durration'", "'duration'"]),
+    (
+        "ThrowingRollouts(durration=1)",
+        lambda m: sim.ThrowingRollouts(durration=1.0),
+        ["'durration'", "'duration'"],
+    ),
     (
         "learning.load(unit=..)",
         lambda m: learning.load(RECORDING, unit="mm"),
@@ -104,7 +108,11 @@ CASES = [
     ("World.place_on(x='a')", lambda m: m["world"].place_on("box", "table", "a", 0.0), ["x", "'a' (str)"]),
     ("Arm.site_pose(shape)", lambda m: m["arm"].site_pose(np.zeros(2)), ["joint_positions", "(2,)"]),
     ("ThrowingConfig(n_weights='a')", lambda m: sim.ThrowingConfig(n_weights="a"), ["n_weights", "'a'"]),
-    ("PickPlaceTask('x')", lambda m: PickPlaceTask("x"), ["PickPlaceTask", "config", "'x' (str)"]),
+    (
+        "PickPlaceRollouts('x')",
+        lambda m: PickPlaceRollouts("x"),
+        ["PickPlaceRollouts", "config", "'x' (str)"],
+    ),
     # learning
     ("learning.load(5)", lambda m: learning.load(5), ["learning.load", "path", "5 (int)"]),
     ("segment('x')", lambda m: learning.segment("x"), ["segment", "demo", "'x' (str)"]),

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from besman.learning.boundaries import fold_minor_movements, merge_holds, turning_points
-from besman.learning.changepoints import JointModel, SegmentModel
+from besman.learning.segmentation.boundaries import fold_minor_movements, merge_holds, turning_points
+from besman.learning.segmentation.changepoints import JointModel, SegmentModel
 
 HOLD = JointModel.of(SegmentModel("still", degree=-1, hold=True))
 MOVE = JointModel.of(SegmentModel("reach", degree=-1, bumps=((2.0, 2.0),)))

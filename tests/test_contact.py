@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from besman.cli import main
+from besman.core.errors import InputError
 from besman.learning import Demonstration, DemonstrationError, SegmentationPrior, SegmentModel, segment
-from besman.learning.changepoints import (
+from besman.learning.segmentation.changepoints import (
     POLYNOMIAL_MODELS,
     STILL,
     JointModel,
@@ -19,9 +20,8 @@ from besman.learning.changepoints import (
     pruned_map_segmentation,
     segment_evidences,
 )
-from besman.learning.contact import OBJECT_AND_GRIP, ContactMarkers
-from besman.learning.segmentation import PRIOR_CHOICES, choose_prior
-from besman.skills.errors import InputError
+from besman.learning.segmentation.contact import OBJECT_AND_GRIP, ContactMarkers
+from besman.learning.segmentation.segmenter import PRIOR_CHOICES, choose_prior
 from besman.skills.transformation import minimum_jerk
 
 RATE = 60.0

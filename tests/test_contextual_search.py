@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from besman.learning.contextual_search import (
+from besman.core.errors import InputError
+from besman.learning.search.contextual import (
     CREPS,
     ContextBox,
     ContextualCMAES,
@@ -15,8 +16,7 @@ from besman.learning.contextual_search import (
     contextual_population_size,
     contextual_search,
 )
-from besman.learning.linear_gaussian import context_features, solve_creps_dual, weighted_ridge
-from besman.skills.errors import InputError
+from besman.learning.search.linear_gaussian import context_features, solve_creps_dual, weighted_ridge
 
 PARAMETERS, CONTEXT_DIMENSIONS = 5, 2
 _problem = np.random.default_rng(0)

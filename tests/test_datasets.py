@@ -16,11 +16,11 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from besman.learning import dataset_format as fmt
-from besman.learning.dataset_reader import DatasetError, read_dataset
-from besman.learning.dataset_writer import DatasetSpec, DatasetWriter, Episode
-from besman.skills.errors import InputError
-from besman.skills.writer_lock import OutputBusyError
+from besman.core.errors import InputError
+from besman.core.writer_lock import OutputBusyError
+from besman.datasets import format as fmt
+from besman.datasets.reader import DatasetError, read_dataset
+from besman.datasets.writer import DatasetSpec, DatasetWriter, Episode
 from besman.tasks.recording import CAMERA, record_run
 from tests.helpers import run_cli
 
@@ -275,7 +275,7 @@ def test_the_command_line_records_shows_and_refuses(tmp_path, capsys):
 
 
 def test_an_append_stopped_before_its_exchange_leaves_the_dataset_as_it_was(tmp_path, monkeypatch):
-    import besman.learning.dataset_writer as writer_module
+    import besman.datasets.writer as writer_module
 
     root = tmp_path / "d"
     with DatasetWriter(root, SPEC) as writer:

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from besman.learning.demonstration import Demonstration, DemonstrationError, load
-from besman.learning.preprocessing import SmoothingConfig, hand_pose, resample, smooth
+from besman.learning.segmentation.demonstration import Demonstration, DemonstrationError, load
+from besman.learning.segmentation.preprocessing import SmoothingConfig, hand_pose, resample, smooth
 from besman.skills.transformation import minimum_jerk
 
 HEADER = "NO_OF_FRAMES\t4\nFREQUENCY\t60\nMARKER_NAMES\tHand\nFrame\tTime\tHand X\tHand Y\tHand Z\t\n"

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from besman.sim.throwing import ThrowingTask
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 from besman.tasks import TASKS
 from besman.tasks.environment import TaskEnv, register_environments
+from besman.tasks.throwing.rollouts import ThrowingRollouts
 
 REPO = Path(__file__).resolve().parents[1]
 CASES = [(name, None) for name in TASKS] + [("pick-place", "ee"), ("handover", "ee")]
@@ -77,7 +77,7 @@ def test_the_scripted_and_random_policies_of_the_example():
 def test_a_throw_lands_where_the_tasks_rollouts_land_it():
     env = TaskEnv("throwing")
     observation, _ = env.reset(seed=3)
-    task = ThrowingTask()
+    task = ThrowingRollouts()
     theta = task.default_theta()
     _, reward, terminated, truncated, info = env.step(theta)
     assert terminated and not truncated and reward in (0.0, 1.0)

@@ -4,6 +4,7 @@ faults."""
 import numpy as np
 import pytest
 
+from besman.core.errors import BesmanError
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.motions import FollowPrimitive, FollowReference, GripperMotion, MotionStatus, MoveTo
 from besman.sim.primitives import (
@@ -16,7 +17,6 @@ from besman.sim.primitives import (
 from besman.sim.references import joint_reference
 from besman.sim.world import tabletop_world
 from besman.skills import DMP, MovementPrimitive
-from besman.skills.errors import BesmanError
 
 # A move of the waist and right arm from the home pose that stays in range and clear of the table.
 SAFE_MOVE = np.array([0.3, -0.3, -0.3, 0.5, -0.5, 0.4, 0.3, 0.4])

@@ -4,11 +4,11 @@ counted; feasible ones are left alone."""
 import numpy as np
 import pytest
 
-from besman.learning.contextual_search import CREPS, ContextBox
-from besman.learning.feasibility import MAX_HALVINGS, pull_back
-from besman.learning.throwing_bench import ThrowingBench, validation_targets
-from besman.learning.throwing_config import ExperimentConfig
-from besman.learning.throwing_contextual import GuardedPolicy
+from besman.experiments.throwing.bench import ThrowingBench, validation_targets
+from besman.experiments.throwing.config import ExperimentConfig
+from besman.experiments.throwing.contextual import GuardedPolicy
+from besman.learning.search.contextual import CREPS, ContextBox
+from besman.learning.search.feasibility import MAX_HALVINGS, pull_back
 
 
 def inside_unit_ball(thetas):

@@ -1,5 +1,5 @@
 """Property-based fuzzing of the loaders of user files: any bytes give a result or the project's own error
-(:class:`~besman.skills.errors.BesmanError`), never another exception, a hang or unbounded memory."""
+(:class:`~besman.core.errors.BesmanError`), never another exception, a hang or unbounded memory."""
 
 import contextlib
 
@@ -7,8 +7,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from besman.core.errors import BesmanError
 from besman.learning import load
-from besman.skills.errors import BesmanError
 from besman.trees import load_tree
 
 # Derandomised (same examples every run, no database in the checkout); a few seconds in all.

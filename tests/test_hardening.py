@@ -14,11 +14,11 @@ import numpy as np
 import py_trees
 import pytest
 
-from besman.sim.throwing import BROKEN_REWARD, ThrowingTask
-from besman.skills.errors import InputError
-from besman.skills.writer_lock import OutputBusyError
+from besman.core.errors import InputError
+from besman.core.writer_lock import OutputBusyError
 from besman.tasks import task
 from besman.tasks.running import run
+from besman.tasks.throwing.rollouts import BROKEN_REWARD, ThrowingRollouts
 from besman.trees import TreeFileError, load_tree
 from besman.trees.runner import node_paths
 from tests.helpers import run_cli
@@ -111,7 +111,7 @@ def test_outputs_are_checked_before_the_work(tmp_path, capsys, argv, message):
 
 
 def test_a_broken_throw_never_scores_better_than_a_failing_one():
-    task = ThrowingTask()
+    task = ThrowingRollouts()
     theta = task.default_theta()
     failing = [theta + 50.0, theta * 3.0, np.full_like(theta, 1e200)]  # far beyond the ranges and limits
     broken = [theta + np.nan, np.full_like(theta, np.inf), np.full_like(theta, 1e306)]  # the last overflows
@@ -250,7 +250,7 @@ def test_written_files_honour_the_umask(tmp_path):
     """In a process of its own: the umask is read when the module loads (reloading it here would give the
     other tests' modules a second set of error classes)."""
     code = (
-        "import os, sys; os.umask(0o027); from besman.skills.storage import write_atomically; "
+        "import os, sys; os.umask(0o027); from besman.core.storage import write_atomically; "
         "print(oct(os.stat(write_atomically(sys.argv[1], b'{}')).st_mode & 0o777))"
     )
     result = subprocess.run(
@@ -381,7 +381,7 @@ def test_a_long_recording_is_segmented_by_pruned_inference_automatically(tmp_pat
     """Six runs one after the other (about 90 s): past a minute, segment() prunes to 50 candidates (linear
     time and memory) unless asked for exact inference."""
     from besman.learning import load
-    from besman.learning.segmentation import EXACT_UP_TO, segment
+    from besman.learning.segmentation.segmenter import EXACT_UP_TO, segment
 
     lines, frame, time_offset = None, 0, 0.0
     for k in range(1, 7):
@@ -495,7 +495,7 @@ def _wrong_names():
     """Every public lookup by name, with a name that does not exist (evaluated lazily, one world shared)."""
     from besman import robots
     from besman.learning import segment
-    from besman.sim.blocks import check_block
+    from besman.sim.block_simulation import check_block
     from besman.sim.executor import Executor
     from besman.sim.world import tabletop_world
     from besman.skills import SkillTemplatePool
@@ -540,7 +540,7 @@ def load_recording():
 
 
 def test_every_public_lookup_of_a_wrong_name_raises_a_besman_error_naming_it():
-    from besman.skills.errors import BesmanError
+    from besman.core.errors import BesmanError
 
     for what, call in _wrong_names().items():
         with pytest.raises(BesmanError) as raised:
@@ -637,7 +637,7 @@ def test_a_ctrl_c_that_python_would_only_report_is_raised_again(hooked):
 
     from tests.helpers import sigint_by_default
 
-    install = "sys.unraisablehook = besman._ctrl_c_again(sys.unraisablehook)" if hooked else ""
+    install = "sys.unraisablehook = besman.stopping.ctrl_c_again(sys.unraisablehook)" if hooked else ""
     code = "\n".join(
         [
             "import sys, time, besman",

@@ -16,11 +16,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from besman.learning import dataset_format as fmt
-from besman.learning.dataset_reader import DatasetError, read_dataset
-from besman.learning.dataset_writer import DatasetSpec, DatasetWriter, Episode
-from besman.skills.errors import InputError
-from besman.skills.storage import WriteError
+from besman.core.errors import InputError
+from besman.core.storage import WriteError
+from besman.datasets import format as fmt
+from besman.datasets.reader import DatasetError, read_dataset
+from besman.datasets.writer import DatasetSpec, DatasetWriter, Episode
 from tests.helpers import run_cli
 
 CAMERA = "observation.images.cam"
@@ -133,7 +133,7 @@ def test_a_video_name_that_leaves_the_videos_folder_is_refused(dataset):
 
 
 def test_files_put_in_the_folder_before_and_during_an_append_stay(tmp_path, monkeypatch):
-    import besman.learning.dataset_writer as writer_module
+    import besman.datasets.writer as writer_module
 
     root = tmp_path / "new"
     exchange = writer_module.exchange_folders
@@ -167,7 +167,7 @@ def test_a_runs_log_inside_the_new_dataset_survives(tmp_path, capsys):
 
 
 def test_a_linked_videos_folder_and_linked_files_stay_links(dataset, tmp_path, monkeypatch):
-    import besman.learning.dataset_writer as writer_module
+    import besman.datasets.writer as writer_module
 
     big = tmp_path / "big-disk" / "videos"
     big.parent.mkdir()
@@ -354,7 +354,7 @@ def test_a_table_that_would_unpack_to_millions_of_rows_is_refused_unread(dataset
 
 
 def test_a_parquet_file_that_unpacks_past_the_bound_is_refused_unread(dataset, monkeypatch):
-    import besman.learning.dataset_reader as reader
+    import besman.datasets.reader as reader
 
     monkeypatch.setattr(reader, "MAX_UNPACKED", 1000)  # the episodes table unpacks to a few kilobytes
     with pytest.raises(
@@ -399,7 +399,7 @@ def test_a_file_system_mounted_in_the_dataset_is_named(dataset):
 
 
 def test_what_changed_kind_meanwhile_is_kept_beside_and_the_episode_recorded(dataset, monkeypatch):
-    import besman.learning.dataset_writer as writer_module
+    import besman.datasets.writer as writer_module
 
     (dataset / "notes").write_text("a file")
     exchange = writer_module.exchange_folders

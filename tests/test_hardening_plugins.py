@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 from besman import examples
-from besman.learning.demonstration import load
-from besman.learning.preprocessing import smooth
-from besman.learning.segmentation import MIN_PEAK_SPEED, NEAR_ORIGIN
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
+from besman.core.storage import check_output
+from besman.learning.segmentation.demonstration import load
+from besman.learning.segmentation.preprocessing import smooth
+from besman.learning.segmentation.segmenter import MIN_PEAK_SPEED, NEAR_ORIGIN
 from besman.skills.pool import PoolError, SkillTemplatePool
-from besman.skills.storage import check_output
 from besman.tasks import TASKS
 from besman.tasks.environment import TaskEnv
 from besman.trees import TreeFileError, load_tree

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from besman.skills.storage import WriteError
-from besman.skills.writer_lock import OutputBusyError, WriterLock
+from besman.core.storage import WriteError
+from besman.core.writer_lock import OutputBusyError, WriterLock
 from besman.trees.runner import read_log
 from tests.helpers import is_whole, run_cli, snapshot
 
@@ -55,10 +55,13 @@ def _stop(*args, **kwargs):
 @pytest.mark.parametrize(
     ("argv", "claimed"),
     [
-        (("learn", "--demos", str(DEMOS), "--out", "{out}"), "besman.learning.pipeline._Run.segmentations"),
+        (
+            ("learn", "--demos", str(DEMOS), "--out", "{out}"),
+            "besman.learning.pipeline.learn._Run.segmentations",
+        ),
         (
             ("experiment", "throwing", "--quick", "--out", "{out}"),
-            "besman.learning.throwing_experiment.Experiment._run",
+            "besman.experiments.throwing.experiment.Experiment._run",
         ),
     ],
     ids=["learn", "experiment"],
@@ -138,7 +141,7 @@ def test_a_log_refuses_what_is_not_an_earlier_run_log_and_leaves_it_as_it_was(tm
 
 def test_a_log_stream_refuses_what_is_not_an_earlier_run_log(tmp_path):
     """The API's log (:class:`LogStream`, what ``Runner.run(log=...)`` writes) refuses them alike."""
-    from besman.skills.errors import InputError
+    from besman.core.errors import InputError
     from besman.trees.runner import LogStream
 
     places = _specials(tmp_path, "run.jsonl")
@@ -291,9 +294,9 @@ def test_a_file_that_cannot_be_written_is_named_and_leaves_nothing_behind(small_
     temporary is gone."""
     folder, reason, limit = small_space
     path = folder / "stage.npz"
-    code = f"import besman.skills.storage as s; s.write_atomically({str(path)!r}, bytes(100_000))"
+    code = f"import besman.core.storage as s; s.write_atomically({str(path)!r}, bytes(100_000))"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, preexec_fn=limit)
-    assert f"besman.skills.storage.WriteError: {path}: cannot write it ({reason})" in result.stderr
+    assert f"besman.core.storage.WriteError: {path}: cannot write it ({reason})" in result.stderr
     assert list(folder.iterdir()) == []
 
 

@@ -15,8 +15,8 @@ from besman.learning import (
     load,
     segments_of,
 )
-from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
-from besman.learning.segmentation import segment
+from besman.learning.segmentation.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
+from besman.learning.segmentation.segmenter import segment
 from besman.skills.primitive import MovementPrimitive
 from besman.skills.transformation import minimum_jerk
 

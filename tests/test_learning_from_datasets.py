@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from besman.learning.dataset_demonstrations import TCP_NAMES, robot_recordings
-from besman.learning.dataset_reader import read_dataset
-from besman.learning.dataset_writer import DatasetSpec, DatasetWriter, Episode
-from besman.learning.labelling import DemonstrationSegment
-from besman.learning.pipeline_labels import gripper_labels
-from besman.learning.pipeline_record import LearnError
-from besman.learning.preprocessing import hand_pose
-from besman.learning.segmentation import segment
+from besman.datasets.reader import read_dataset
+from besman.datasets.writer import DatasetSpec, DatasetWriter, Episode
+from besman.learning.pipeline.dataset_demonstrations import TCP_NAMES, robot_recordings
+from besman.learning.pipeline.labels import gripper_labels
+from besman.learning.pipeline.record import LearnError
+from besman.learning.segmentation.labelling import DemonstrationSegment
+from besman.learning.segmentation.preprocessing import hand_pose
+from besman.learning.segmentation.segmenter import segment
 from besman.sim.executor import Executor
 from besman.tasks import task
 from besman.tasks.running import run

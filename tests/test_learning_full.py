@@ -12,9 +12,9 @@ import pytest
 from helpers import failed_placements
 from test_learning_pipeline import COMMITTED_POOL, SAME_FRAMES, SAME_REWARD, UNSEEN_TAUS, _learn
 
-from besman.learning.pipeline_refinement import input_box
+from besman.learning.pipeline.refinement import input_box
 from besman.skills import SkillTemplatePool
-from besman.tasks.pick_place.blocks import BlockTask, BlockTaskConfig
+from besman.tasks.pick_place.blocks import BlockRollouts, BlockTaskConfig
 
 TAU_NAMES = ("hand_dx", "hand_dy", "hand_dz", "hand_turn")  # m, m, m, deg
 # The hand's planned moves, as far as the digits of another processor move them: measured between two
@@ -120,7 +120,7 @@ def test_the_committed_pools_training_thetas_succeed_here_with_their_recorded_re
         recorded = template.provenance["training"]
         np.testing.assert_array_equal([run["tau"] for run in recorded], template.taus)
         assert all(run["success"] for run in recorded), name
-        task = BlockTask(BlockTaskConfig(name, str(COMMITTED_POOL / "work" / "shapes" / f"{name}.json")))
+        task = BlockRollouts(BlockTaskConfig(name, str(COMMITTED_POOL / "work" / "shapes" / f"{name}.json")))
         here = task.evaluate(template.thetas, np.array([run["task_tau"] for run in recorded]))
         failed = [
             (tau, detail.message)

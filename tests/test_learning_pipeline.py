@@ -37,19 +37,19 @@ from helpers import (
 )
 
 from besman.cli import main
-from besman.learning.labelling import DemonstrationSegment
-from besman.learning.online import MAX_ROLLOUTS, refine_online, uncertainty
-from besman.learning.pipeline import LearnError, LearnSettings, learn
-from besman.learning.pipeline_labels import longest_run
-from besman.learning.retargeting import WorkspaceMap, fit_workspace_map, retarget
+from besman.core.writer_lock import WriterLock
+from besman.learning.pipeline.labels import longest_run
+from besman.learning.pipeline.learn import LearnError, LearnSettings, learn
+from besman.learning.pipeline.retargeting import WorkspaceMap, fit_workspace_map, retarget
+from besman.learning.search.online import MAX_ROLLOUTS, refine_online, uncertainty
+from besman.learning.segmentation.labelling import DemonstrationSegment
 from besman.robots.catalogue import ROBOTS_DIR
 from besman.sim import Executor, tabletop_world
-from besman.sim.blocks import INPUT_NAMES, Reward, block_input, rollout
+from besman.sim.block_simulation import INPUT_NAMES, Reward, block_input, rollout
 from besman.sim.primitives import point_to_point, shaped
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, SkillTemplatePool
-from besman.skills.writer_lock import WriterLock
 from besman.tasks import task
-from besman.tasks.pick_place.blocks import BlockTask, BlockTaskConfig
+from besman.tasks.pick_place.blocks import BlockRollouts, BlockTaskConfig
 from besman.tasks.running import prepare
 from besman.trees.files import loads_tree
 from besman.trees.manipulation import PlanGrasp, PlanPlace
@@ -224,7 +224,7 @@ def test_a_pool_for_another_task_or_robot_or_other_settings_is_refused_and_kept(
 
 def _claimed(two_recordings, out, monkeypatch, **options) -> dict:
     """A learn into ``out`` stopped once it has claimed the output: its record."""
-    monkeypatch.setattr("besman.learning.pipeline._Run.segmentations", _stop)
+    monkeypatch.setattr("besman.learning.pipeline.learn._Run.segmentations", _stop)
     with pytest.raises(KeyboardInterrupt):
         learn(two_recordings, out, blocks=BLOCKS, progress=False, **options)
     return json.loads((out / "work" / "learn.json").read_text())
@@ -532,7 +532,7 @@ def test_labels_from_annotated_examples_pick_the_same_instances_as_clustering(
 @pytest.mark.slow
 def test_block_rollouts_on_ray_equal_those_in_local_processes():
     pytest.importorskip("ray")
-    task = BlockTask(BlockTaskConfig("return", str(COMMITTED_POOL / "work" / "shapes" / "return.json")))
+    task = BlockRollouts(BlockTaskConfig("return", str(COMMITTED_POOL / "work" / "shapes" / "return.json")))
     thetas = task.shape.theta + np.random.default_rng(4).normal(scale=0.05, size=(2, task.shape.theta.size))
     taus = np.array([place_tau((0.5, -0.4, 0.0)), place_tau((0.6, -0.36, 0.0))])
     local = task.evaluate(thetas, taus)

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import besman.robots as robots
+from besman.core.errors import InputError
 from besman.robots.catalogue import ROBOTS_DIR
 from besman.robots.gripper import measure_openings
 from besman.sim.executor import limit_violations
 from besman.sim.objects import FINGER_CLEARANCE
-from besman.skills.errors import InputError
 from besman.tasks import task
 from besman.tasks.pick_place import FAMILY, PLACES
 from besman.tasks.running import prepare

@@ -1,5 +1,5 @@
 """OpenArm v2: a model from an installed Python package, a home keyframe defined by the description, both
-arms' grippers measured, and the tabletop trees on it."""
+arms' grippers measured (the demos on it: tests/test_acceptance.py)."""
 
 import json
 import shutil
@@ -13,8 +13,6 @@ from besman.robots import packages
 from besman.robots.catalogue import ROBOTS_DIR
 from besman.robots.description import DescriptionError
 from besman.robots.gripper import measure_openings
-from besman.sim.executor import limit_violations
-from besman.tasks.running import prepare
 
 
 @pytest.fixture(scope="module")
@@ -104,36 +102,3 @@ def test_each_grippers_opening_table_is_what_the_model_does(openarm, side):
         gripper.opening_for(commands), measure_openings(openarm, side, commands), atol=5e-4
     )
     assert gripper.upper == pytest.approx(0.0665, abs=5e-4)
-
-
-@pytest.mark.slow
-def test_grasp_then_place_runs_on_the_openarm_ten_of_ten_within_its_limits(openarm):
-    """The same tree as on AILA, at ten seeded configurations: every box placed, every command within the
-    limits (its ranges included)."""
-    for seed in range(10):
-        run = prepare("pick-place", seed=seed, robot="openarm")
-        result = run.runner.run()
-        summary = run.judge(result)
-        assert summary.success, (seed, summary.message)
-        executor = run.runner.executor
-        assert not limit_violations(executor.log, executor), seed
-
-
-@pytest.mark.slow
-def test_the_handover_runs_on_the_openarm_ten_times_without_the_arms_touching(openarm):
-    """The handover tree, unchanged from AILA's, with the poses of the OpenArm's layout: the bar reaches its
-    place within the tolerance, no tick with a contact between the arms, every command within the limits."""
-    for seed in range(10):
-        run = prepare("handover", seed=seed, robot="openarm")
-        summary = run.judge(run.runner.run())
-        assert summary.success, (seed, summary.status, summary.message)
-        touching, closest = (summary.measurements[key] for key in ("ticks_arms_touching", "arms_closest_m"))
-        assert touching == 0 and closest >= 0.03
-        executor = run.runner.executor
-        for member in (executor, executor.arm_executor("left")):
-            violations = limit_violations(member.log, member)
-            # Velocity, acceleration and jerk within the limits; a range may be passed by a few mrad where a
-            # planned pose lies on it (the left shoulder's 1.3963 rad, passed by 4.5 mrad at seed 2: open).
-            assert [v for v in violations if not v.startswith("range limit")] == [], seed
-            excess = [float(v.rsplit(" ", 1)[1]) for v in violations if v.startswith("range limit")]
-            assert max(excess, default=0.0) < 0.005, (seed, violations)

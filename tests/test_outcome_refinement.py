@@ -4,8 +4,8 @@ corrected by each trial's outcome (Broyden), the best outcome kept."""
 import numpy as np
 import pytest
 
-from besman.learning.outcome_refinement import refine_in_outcome_space
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
+from besman.learning.search.outcome_refinement import refine_in_outcome_space
 
 COORDINATES = np.array([1, 3, 4])
 MIXING = np.array([[1.0, 0.5, 0.0], [0.2, -1.0, 0.7]])

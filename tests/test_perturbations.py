@@ -9,16 +9,16 @@ import numpy as np
 import pytest
 from helpers import run_cli
 
+from besman.core.errors import InputError
+from besman.core.seeds import child_seed
 from besman.robots.kinematics import Pose
-from besman.sim.blocks import step_motion
+from besman.sim.block_simulation import step_motion
 from besman.sim.executor import Executor
 from besman.sim.manipulation import DEFAULT_PLAN, PICK_STEPS, hand_yaw, plan_pick
 from besman.sim.motions import MotionStatus
 from besman.sim.objects import GraspableObject, yaw_of
 from besman.sim.perturbations import Perception, Perturbations
 from besman.sim.world import tabletop_world
-from besman.skills.errors import InputError
-from besman.skills.seeds import child_seed
 from besman.tasks import task
 from besman.tasks.running import prepare, run
 

@@ -10,7 +10,7 @@ from besman.sim.manipulation import PickPlacePlan, grasp_yaws
 from besman.sim.objects import GraspableObject, yaw_error, yaw_of
 from besman.sim.world import tabletop_world
 from besman.tasks import task as find_task
-from besman.tasks.pick_place.episode import PickPlaceTask
+from besman.tasks.pick_place.episode import PickPlaceRollouts
 
 PICK_PLACE_BOUNDS = find_task("pick-place").bounds("aila")
 CUBE = (0.06, 0.06, 0.06)  # m: the 6 cm box of a run without a seed
@@ -24,7 +24,7 @@ def pick_place_tau(object_xy, place_xy, object_yaw=0.0, place_yaw=0.0, shape=0, 
 
 @pytest.fixture(scope="module")
 def task():
-    return PickPlaceTask()
+    return PickPlaceRollouts()
 
 
 def grid_taus():

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from besman.learning.policy_search import (
+from besman.core.errors import InputError
+from besman.learning.search.policy_search import (
     CMAES,
     XNES,
     WarmStart,
@@ -11,7 +12,6 @@ from besman.learning.policy_search import (
     make_optimizer,
     policy_search,
 )
-from besman.skills.errors import InputError
 
 TARGET = np.linspace(-1.0, 1.0, 10)
 
@@ -107,10 +107,10 @@ def test_bad_input_is_refused_by_name():
 
 @pytest.mark.slow
 def test_a_search_on_throwing_gives_the_same_curve_on_threads_and_ray():
-    """One batch per generation through ThrowingTask.evaluate; the backend changes nothing."""
-    from besman.sim.throwing import ThrowingTask
+    """One batch per generation through ThrowingRollouts.evaluate; the backend changes nothing."""
+    from besman.tasks.throwing.rollouts import ThrowingRollouts
 
-    task = ThrowingTask()
+    task = ThrowingRollouts()
     taus = np.array([[-3.0, -2.0], [-5.0, 0.0]])
 
     def search(backend):

@@ -102,7 +102,7 @@ def test_damaged_files_give_clear_errors(tmp_path, joint_primitive, damage, mess
 
 def test_tampered_arrays_with_a_matching_checksum_are_still_validated(tmp_path, joint_primitive):
     """Someone rewrites the NPZ with NaN weights and fixes the checksum: values are still checked."""
-    from besman.skills.storage import npz_bytes, sha256
+    from besman.core.storage import npz_bytes, sha256
 
     path = joint_primitive.save(tmp_path / "reach")
     with np.load(path.with_suffix(".npz")) as archive:
@@ -118,7 +118,7 @@ def test_tampered_arrays_with_a_matching_checksum_are_still_validated(tmp_path, 
 def test_saving_over_an_existing_primitive_is_atomic(tmp_path, joint_primitive, monkeypatch):
     path = joint_primitive.save(tmp_path / "reach")
     before = path.read_bytes()
-    import besman.skills.storage as storage
+    import besman.core.storage as storage
 
     def failing_replace(source, target):
         raise OSError("disk full")

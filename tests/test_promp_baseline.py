@@ -10,9 +10,9 @@ import pytest
 
 pytest.importorskip("movement_primitives.promp", reason="dev dependency movement-primitives")
 
-from besman.sim.blocks import INPUT_NAMES
+from besman.core.errors import InputError
+from besman.sim.block_simulation import INPUT_NAMES
 from besman.skills import DMP, DMPSettings, MovementPrimitive, SkillTemplate, TaskBounds
-from besman.skills.errors import InputError
 from besman.tasks.pick_place.promp_baseline import (
     ProMPBaseline,
     TrainingMoves,

@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from besman.sim.blocks import INPUT_NAMES, block_input
+from besman.core.errors import BesmanError
+from besman.sim.block_simulation import INPUT_NAMES, block_input
 from besman.sim.executor import Executor
 from besman.sim.primitives import on_arm, point_to_point, shaped
 from besman.sim.world import tabletop_world
 from besman.skills import SkillTemplatePool
-from besman.skills.errors import BesmanError
 from besman.tasks.running import run
 from besman.trees import load_tree
 

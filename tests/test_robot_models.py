@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import besman.robots as robots
+from besman.core.errors import UnknownNameError
 from besman.skills import quaternion
-from besman.skills.errors import UnknownNameError
 from besman.skills.transformation import minimum_jerk
 
 # DFKI's joint-limit configuration (rad, rad/s), as in shared/reference/robots.md.

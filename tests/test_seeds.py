@@ -9,11 +9,11 @@ import sys
 import numpy as np
 import pytest
 
-from besman.learning.policy_search import CMAES, WarmStart
+from besman.core.errors import InputError
+from besman.core.seeds import child_seed, cma_seed
+from besman.learning.search.policy_search import CMAES, WarmStart
 from besman.skills import DMP, MovementPrimitive
-from besman.skills.errors import InputError
-from besman.skills.seeds import child_seed, cma_seed
-from besman.skills.tasks import TaskBounds
+from besman.skills.task_bounds import TaskBounds
 from besman.skills.template import SkillTemplate
 from besman.skills.template_models import PerDimensionModel, _fit
 from besman.tasks import task

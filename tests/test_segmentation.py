@@ -8,8 +8,8 @@ from scipy.special import logsumexp
 from scipy.stats import multivariate_t
 
 from besman.learning import Demonstration, DemonstrationError, load
-from besman.learning.boundaries import movement_onsets
-from besman.learning.changepoints import (
+from besman.learning.segmentation.boundaries import movement_onsets
+from besman.learning.segmentation.changepoints import (
     POLYNOMIAL_MODELS,
     SPEED_MODELS,
     VMCI,
@@ -24,8 +24,8 @@ from besman.learning.changepoints import (
     segment_evidences,
     stratified_optimal_resampling,
 )
-from besman.learning.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
-from besman.learning.segmentation import boundary_f1, segment
+from besman.learning.segmentation.demonstration import PICK_AND_PLACE_MAIN_SEGMENTS
+from besman.learning.segmentation.segmenter import boundary_f1, segment
 from besman.skills.transformation import minimum_jerk
 
 

@@ -4,9 +4,9 @@ toy two-block sequence whose first block must give up some of its own cost for t
 import numpy as np
 import pytest
 
-from besman.learning.policy_search import WarmStart
-from besman.learning.sequences import refine_sequence
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
+from besman.learning.search.hierarchical import refine_sequence
+from besman.learning.search.policy_search import WarmStart
 
 GOAL = np.array([1.0, 1.0])  # where the second block would have the first end
 
@@ -55,8 +55,8 @@ def test_an_objective_of_the_wrong_shape_or_with_a_nan_is_refused_by_name():
 
 
 def test_a_block_that_did_not_run_gets_the_mean_cost_of_the_block_where_it_ran():
-    from besman.learning.pipeline_sequence import impute
-    from besman.sim.blocks import Reward
+    from besman.learning.pipeline.sequence_refinement import impute
+    from besman.sim.block_simulation import Reward
 
     costs = np.array([[0.2, 0.3, 0.1], [1.2, np.nan, np.nan], [0.4, 0.5, np.nan]])
     filled = impute(costs, Reward())
@@ -67,7 +67,7 @@ def test_a_block_that_did_not_run_gets_the_mean_cost_of_the_block_where_it_ran()
 def test_a_refinement_the_task_cannot_do_is_refused_before_any_work():
     from dataclasses import replace
 
-    from besman.learning.pipeline_record import LearnError, LearnSettings
+    from besman.learning.pipeline.record import LearnError, LearnSettings
     from besman.tasks import task
 
     blocks = task("pick-place").building_blocks("aila")

@@ -10,14 +10,14 @@ import py_trees
 import pytest
 from sklearn.gaussian_process import GaussianProcessRegressor
 
+from besman.core.errors import InputError
 from besman.learning.template_selection import CANDIDATES, choose_kernel
 from besman.sim.executor import Executor
 from besman.sim.world import tabletop_world
 from besman.skills import DMP, DMPSettings, MovementPrimitive, zero_shot
-from besman.skills.errors import InputError
 from besman.skills.pool import PoolError, SkillTemplatePool
 from besman.skills.shared_kernel import SharedKernel
-from besman.skills.tasks import TaskBounds
+from besman.skills.task_bounds import TaskBounds
 from besman.skills.template import SkillTemplate
 from besman.skills.template_models import leave_one_out_means, per_dimension_kernel
 from besman.trees import Runner, load_tree

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from besman.learning.demonstration import DemonstrationError, Segment, load
+from besman.core.storage import optional_field, read_json, require_field
+from besman.learning.segmentation.demonstration import DemonstrationError, Segment, load
 from besman.robots import DescriptionError
 from besman.sim.manipulation import PlanningError
 from besman.skills import DMP, BesmanError, CartesianDMP, DMPSettings, InputError, Primitive
 from besman.skills.dmp_core import fit_weights
 from besman.skills.quaternion import from_matrix
-from besman.skills.storage import optional_field, read_json, require_field
 from besman.skills.transformation import minimum_jerk
 from besman.trees import TreeFileError
 

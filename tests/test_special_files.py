@@ -26,12 +26,12 @@ import pytest
 
 from besman import robots
 from besman.cli import main
+from besman.core.errors import BesmanError
+from besman.core.reading import read_bytes
+from besman.core.storage import read_npz
 from besman.learning import load
 from besman.robots.description import DescriptionError
 from besman.skills import MovementPrimitive, SkillTemplatePool
-from besman.skills.errors import BesmanError
-from besman.skills.reading import read_bytes
-from besman.skills.storage import read_npz
 from besman.trees import load_tree
 from besman.trees.runner import read_log
 

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 from besman.tasks import task
 from besman.tasks.running import prepare, run_demo
 from besman.tasks.stack import ORDERS

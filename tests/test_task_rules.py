@@ -11,7 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import besman.tasks.running as running
-from besman.sim.blocks import judge_block, restore, snapshot
+from besman.sim.block_simulation import judge_block, restore, snapshot
 from besman.sim.outcomes import placement
 from besman.tasks import task
 from besman.tasks.running import prepare

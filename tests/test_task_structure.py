@@ -13,9 +13,9 @@ import pytest
 import yaml
 from helpers import run_cli
 
-from besman.learning.demonstration import Demonstration
-from besman.learning.task_structure import recorded_blocks, task_structure
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
+from besman.learning.pipeline.task_structure import recorded_blocks, task_structure
+from besman.learning.segmentation.demonstration import Demonstration
 from besman.trees.learned import learned_tree, write_learned_tree
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -130,7 +130,7 @@ def test_a_block_that_carries_the_object_on_without_a_release_has_no_leaf():
 def test_the_learned_trees_of_the_committed_pools_are_what_the_learner_makes_and_pass_the_check(capsys):
     """Each committed pool's tree is its recorded structure made into a tree, and ``besman tree check``
     passes it (its templates and the pool where the tree says)."""
-    from besman.learning.task_structure import TaskStructure
+    from besman.learning.pipeline.task_structure import TaskStructure
 
     for robot in ("aila", "ur5e", "openarm"):
         pool = POOLS / f"pick_place_{robot}"

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 import besman.robots as robots
+from besman.core.errors import InputError
 from besman.robots.description import DescriptionError
-from besman.sim.throwing import HARDWARE_BOUNDS
-from besman.skills.errors import InputError
 from besman.tasks import task
 from besman.tasks.handover import HANDOVER
 from besman.tasks.running import prepare, run_demo
 from besman.tasks.sort import places
+from besman.tasks.throwing.rollouts import HARDWARE_BOUNDS
 
 OPENARM = robots.describe("openarm").file
 

@@ -3,19 +3,19 @@
 import numpy as np
 import pytest
 
-from besman.sim.throwing import (
+from besman.tasks.throwing.rollouts import (
     BROKEN_REWARD,
     FAILURE_REWARD,
     HARDWARE_BOUNDS,
     PAPER_BOUNDS,
     ThrowingConfig,
-    ThrowingTask,
+    ThrowingRollouts,
 )
 
 
 @pytest.fixture(scope="module")
 def task():
-    return ThrowingTask()
+    return ThrowingRollouts()
 
 
 def test_theta_is_96_dimensional_and_bounds_are_the_papers(task):
@@ -43,7 +43,7 @@ def test_rewards_are_reproducible_bit_for_bit(task):
     second = task.evaluate(thetas[::-1].copy(), taus[::-1].copy())  # other order, other threads
     np.testing.assert_array_equal(first.rewards, second.rewards[::-1])
     assert first.details == second.details[::-1]
-    fresh = ThrowingTask().evaluate(thetas, taus)
+    fresh = ThrowingRollouts().evaluate(thetas, taus)
     np.testing.assert_array_equal(first.rewards, fresh.rewards)
 
 
@@ -136,7 +136,7 @@ def test_a_reference_beyond_the_speed_limits_is_a_failure_that_grows_with_the_vi
 
 
 def test_the_hardware_variant_throws_within_the_real_limits():
-    hardware = ThrowingTask(ThrowingConfig(variant="hardware"))
+    hardware = ThrowingRollouts(ThrowingConfig(variant="hardware"))
     assert hardware.bounds == HARDWARE_BOUNDS
     np.testing.assert_array_equal(hardware.speed_limits, hardware.robot.group("arm").velocity)
     result = hardware.evaluate(hardware.default_theta(), [-1.2, 0.0])
@@ -175,7 +175,7 @@ def test_a_broken_theta_can_get_the_worst_penalty_instead_of_an_error(task):
 
 def test_unknown_variant():
     with pytest.raises(ValueError, match="variant must be one of"):
-        ThrowingTask(ThrowingConfig(variant="moon"))
+        ThrowingRollouts(ThrowingConfig(variant="moon"))
 
 
 @pytest.mark.slow

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from besman.learning.throwing_claims import A_ROLLOUTS, acceptance, claims, goals, rollouts_to_reach
-from besman.learning.throwing_contextual import CANDIDATES
-from besman.learning.throwing_experiment import (
+from besman.experiments.throwing.claims import A_ROLLOUTS, acceptance, claims, goals, rollouts_to_reach
+from besman.experiments.throwing.contextual import CANDIDATES
+from besman.experiments.throwing.experiment import (
     CONTEXTUAL_METHODS,
     CURVE_METHODS,
     FAILED_DISTANCE,

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 from besman.trees import TreeFileError, check_tree, load_tree, register_pool, register_template, registry
 from tests.helpers import run_cli
 

@@ -6,11 +6,11 @@ import py_trees
 import pytest
 from py_trees.common import Status
 
+from besman.core.errors import InputError
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.motions import MotionStatus, Stop
 from besman.sim.world import tabletop_world
 from besman.skills import DMP, MovementPrimitive
-from besman.skills.errors import InputError
 from besman.trees import (
     ExecutePrimitive,
     Gripper,

@@ -1,5 +1,6 @@
 """The UR5e with a Robotiq 2F-85: MuJoCo Menagerie's models assembled from the description, the gripper's
-opening table re-measured, and the same demo trees as on AILA, within the arm's limits."""
+opening table re-measured, and the same demo trees as on AILA (run within the arm's limits:
+tests/test_acceptance.py)."""
 
 import json
 import shutil
@@ -7,14 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import run_cli, run_within_limits
+from helpers import run_cli
 
 import besman.robots as robots
 from besman.robots import menagerie
 from besman.robots.description import DescriptionError
 from besman.robots.gripper import measure_openings
 from besman.tasks import task
-from besman.tasks.sort import places as sort_places
 
 
 @pytest.fixture(scope="module")
@@ -156,29 +156,6 @@ def test_the_demos_next_step_on_the_ur5e_runs_there(capsys, tmp_path):
     argv[argv.index("--log") + 1] = str(tmp_path / "run.jsonl")
     code, out, _ = run_cli(capsys, "run", *argv)
     assert code == 0 and out.startswith("SUCCESS"), out
-
-
-@pytest.mark.slow
-def test_grasp_then_place_on_the_ur5e_ten_of_ten_within_its_limits():
-    """The issue's acceptance on seeds no other test or tuning used: every box within 2 cm of its target,
-    every commanded motion of every episode within the UR5e's velocity, acceleration and jerk limits."""
-    for seed in range(1000, 1010):
-        summary, violations = run_within_limits("pick-place", seed, "ur5e")
-        assert summary.success and summary.measurements["placement_error_m"] <= 0.02, (seed, summary.message)
-        assert violations == [], (seed, violations)
-
-
-@pytest.mark.slow
-def test_sort_on_the_ur5e_ten_of_ten_within_its_limits():
-    """Three boxes to their places on the UR5e's shelf, one taken out of the hand each time and grasped
-    again: 10/10 on unused seeds, every box within 2 cm, every command within the limits."""
-    places = sort_places("ur5e")
-    for seed in range(1000, 1010):
-        summary, violations = run_within_limits("sort", seed, "ur5e")
-        assert summary.success, (seed, summary.status, summary.message)
-        measured = summary.measurements
-        assert measured["slipped"] in places and max(measured["placement_errors_m"].values()) <= 0.02
-        assert violations == [], (seed, violations)
 
 
 @pytest.mark.slow

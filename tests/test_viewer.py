@@ -421,8 +421,8 @@ def test_the_session_drags_x_and_y_keeps_the_yaw_and_shows_the_object_as_it_is()
     rebuild the page's object as it is, a cylinder of that diameter and height, standing at the yaw."""
     import mujoco
 
+    from besman.core.errors import InputError
     from besman.sim.objects import yaw_of
-    from besman.skills.errors import InputError
     from besman.tasks.session import Session
 
     def ring() -> np.ndarray:
@@ -480,7 +480,7 @@ def test_overlays_and_the_tree_panel_follow_a_template_run():
     from besman.sim.executor import Executor
     from besman.sim.manipulation import PickPlacePlan, plan_pick
     from besman.sim.world import tabletop_world
-    from besman.skills.tasks import TaskBounds
+    from besman.skills.task_bounds import TaskBounds
     from besman.skills.template import SkillTemplate
     from besman.trees.leaves import ExecutePrimitive, InstantiateSkillTemplate
     from besman.trees.runner import Runner
@@ -536,9 +536,9 @@ def test_a_throwing_template_shows_its_spread_and_where_the_ball_lands():
     ending where the mean's does on average, and a target outside the task box is refused by name."""
     from pathlib import Path
 
-    from besman.sim.throwing_view import ThrowingView
-    from besman.skills.errors import InputError
+    from besman.core.errors import InputError
     from besman.skills.pool import SkillTemplatePool
+    from besman.tasks.throwing.view import ThrowingView
 
     template = SkillTemplatePool(Path(__file__).parents[1] / "examples/pools/throwing")["throw"]
     target = (-4.0, -2.0)

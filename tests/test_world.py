@@ -4,9 +4,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from besman.core.errors import UnknownNameError
 from besman.sim.faults import FaultMonitor
-from besman.sim.world import GraspableObject, tabletop_world, throwing_world
-from besman.skills.errors import UnknownNameError
+from besman.sim.world import GraspableObject, tabletop_world
+from besman.tasks.throwing.world import throwing_world
 
 
 @pytest.fixture(scope="module")

@@ -23,11 +23,9 @@ from besman.trees.nodes import register_node_type
 from besman.trees.registry import register_pool, register_template
 from besman.trees.runner import Runner, RunResult, read_log
 from besman.trees.summary import RunSummary
-from besman.trees.throwing import AimThrow, Throw
 from besman.trees.timing import Deadline, SimTimeout, Wait
 
 __all__ = [
-    "AimThrow",
     "ArmsApart",
     "AtPose",
     "Deadline",
@@ -47,7 +45,6 @@ __all__ = [
     "RunSummary",
     "Runner",
     "SimTimeout",
-    "Throw",
     "TreeFileError",
     "Wait",
     "check_tree",

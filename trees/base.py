@@ -28,10 +28,10 @@ import py_trees
 from py_trees.blackboard import Blackboard
 from py_trees.common import Access
 
+from besman.core.errors import InputError, UnknownNameError
+from besman.core.validation import as_given, checked, instance, integer, number, optional, shaped, text
 from besman.sim.executor import Executor
 from besman.skills import MovementPrimitive
-from besman.skills.errors import InputError, UnknownNameError
-from besman.skills.validation import as_given, checked, instance, integer, number, optional, shaped, text
 
 BEHAVIOUR = instance(py_trees.behaviour.Behaviour, "a py_trees behaviour")
 NAMES = instance(Mapping, "a mapping of names")

@@ -22,14 +22,12 @@ key (:mod:`besman.trees.base`). Defaults:
 - ``/<ns>/configuration`` - joint values; provided by the author or a remap, read by ``AtPose``.
 - ``/<ns>/goal`` - a hand pose ``{position, yaw}``; a remap (``/task/ready``) provides it, ``PlanMove`` reads.
 - ``/<ns>/motion`` - a movement primitive to that pose; ``PlanMove`` writes, ``ExecutePrimitive`` reads.
-- ``/<ns>/throw`` - the throw aimed at ``/<ns>/target`` (the instantiated, possibly refined, template);
-  ``AimThrow`` writes, ``Throw`` reads.
-- ``/<ns>/landing`` - where the ball first touched the floor (x, y); ``Throw`` writes.
 - ``/<ns>/shape`` - a learned return (``InstantiateSkillTemplate`` writes it), read by ``PlanReturn``.
 - ``/<ns>/return`` - a movement primitive back to the home configuration; ``PlanReturn`` writes, the return
   subtree's ``ExecutePrimitive`` reads.
 
-:func:`set_task_values` writes the ``/task`` values of a run.
+:func:`set_task_values` writes the ``/task`` values of a run. A task's own leaves document their keys
+(the throwing task's: :mod:`besman.tasks.throwing.leaves`).
 """
 
 from __future__ import annotations

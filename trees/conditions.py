@@ -16,11 +16,11 @@ from typing import ClassVar
 import numpy as np
 from py_trees.common import Access, Status
 
+from besman.core.errors import InputError
 from besman.sim.manipulation import Target
 from besman.sim.objects import yaw_error, yaw_of
 from besman.sim.outcomes import PLACE_TOLERANCE, TILT_LIMIT, YAW_TOLERANCE
 from besman.sim.proximity import ArmProximity
-from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
 
 

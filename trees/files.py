@@ -19,8 +19,9 @@ Node types (:data:`~besman.trees.nodes.NODE_TYPES`, derived from the classes): t
 ``SuccessIsFailure``, ``FailureIsSuccess``, ``SuccessIsRunning``, ``Timeout`` in simulated time), the loop
 ``ForEach``, besman's leaves (``ExecutePrimitive``, ``InstantiateSkillTemplate``, ``Gripper``,
 ``ObjectGrasped``, ``ObjectAt``, ``AtPose``, ``ArmsApart``, ``Wait``, ``RiseClear``, ``PerceiveObject``,
-``PlanGrasp``, ``PlanPlace``, ``PlanReturn``, ``PlanMove``, ``AimThrow``, ``Throw``) and subtree idioms
-(``Grasp``, ``Place``, ``ReturnHome``, ``GraspThenPlace``); ``besman tree nodes`` lists them all with their
+``PlanGrasp``, ``PlanPlace``, ``PlanReturn``, ``PlanMove``), subtree idioms (``Grasp``, ``Place``,
+``ReturnHome``, ``GraspThenPlace``) and the node types tasks and other distributions register (the throwing
+task's ``AimThrow`` and ``Throw``); ``besman tree nodes`` lists them all with their
 parameters (:mod:`besman.trees.reference`). Primitives are referenced by the path of their JSON file;
 templates by ``MODULE:NAME`` (an object with ``instantiate(tau)``), or a pool and a ``template_name``:
 ``pool:`` names a skill template pool directory (relative to the tree file,
@@ -46,11 +47,11 @@ from typing import Any
 import py_trees
 import yaml
 
+from besman.core.errors import BesmanError
+from besman.core.reading import read_bytes
+from besman.core.validation import PATH, checked, instance, optional, text
 from besman.skills import MovementPrimitive
-from besman.skills.errors import BesmanError
 from besman.skills.pool import SkillTemplatePool
-from besman.skills.reading import read_bytes
-from besman.skills.validation import PATH, checked, instance, optional, text
 from besman.trees.base import BEHAVIOUR
 from besman.trees.nodes import NODE_TYPES, NodeType, Param
 from besman.trees.registry import UNIMPORTED, allowed_modules, resolve

@@ -15,8 +15,8 @@ from typing import Any
 import py_trees
 from py_trees.common import Status
 
+from besman.core.validation import checked, optional, positive, text
 from besman.sim.proximity import ArmProximity
-from besman.skills.validation import checked, optional, positive, text
 from besman.trees.base import BEHAVIOUR, executor_of
 from besman.trees.conditions import apart, proximity_of
 

@@ -28,9 +28,8 @@ from typing import Any
 
 import py_trees
 
-from besman.sim.manipulation import GRASP_SUBGOALS, PICK_STEPS, PLACE_STEPS, PLACE_SUBGOALS, PickPlacePlan
-from besman.skills.errors import InputError
-from besman.skills.validation import (
+from besman.core.errors import InputError
+from besman.core.validation import (
     COUNT,
     as_given,
     checked,
@@ -41,6 +40,7 @@ from besman.skills.validation import (
     shaped,
     text,
 )
+from besman.sim.manipulation import GRASP_SUBGOALS, PICK_STEPS, PLACE_STEPS, PLACE_SUBGOALS, PickPlacePlan
 from besman.trees.base import NAMES, RoleBehaviour, SimulationBehaviour
 from besman.trees.conditions import ObjectAt, ObjectGrasped
 from besman.trees.leaves import ExecutePrimitive, Gripper

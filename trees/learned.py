@@ -1,5 +1,5 @@
 """The tree of a learned task, assembled from what its recordings show
-(:mod:`besman.learning.task_structure`).
+(:mod:`besman.learning.pipeline.task_structure`).
 
 Each block becomes the subtree that does what the recordings show across it, with the block's skill
 template as its learned motion:
@@ -29,9 +29,9 @@ from pathlib import Path
 
 import yaml
 
-from besman.learning.task_structure import TaskStructure
-from besman.skills.errors import InputError
-from besman.skills.storage import write_atomically
+from besman.core.errors import InputError
+from besman.core.storage import write_atomically
+from besman.learning.pipeline.task_structure import TaskStructure
 from besman.trees.files import FORMAT_VERSION
 
 ATTEMPTS = 3  # tries of a grasp and its place, as the hand-written learned tree has
@@ -51,7 +51,7 @@ def learned_tree(
     """The tree file's document for ``structure``, on ``task``: ``object`` is what the hand grasps and
     places, ``target`` the blackboard key of where it goes, ``pool`` the templates' pool (relative to the
     file), ``subgoals`` per block the plan's numbers that its refinement chose (a sequence refinement's:
-    :func:`~besman.learning.pipeline_sequence.subgoals`; the defaults where a block has none)."""
+    :func:`~besman.learning.pipeline.sequence_refinement.subgoals`; the defaults where a block has none)."""
     subgoals = subgoals or {}
     learned = {"pool": pool}  # zero-shot: the templates' means (add refine_above to refine online)
     steps, pending = [], None  # pending: (block, step) of a grasp waiting for the place that follows it

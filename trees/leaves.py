@@ -19,9 +19,9 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 from py_trees.common import Access, Status
 
+from besman.core.errors import InputError
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
 from besman.skills import MovementPrimitive
-from besman.skills.errors import InputError
 from besman.trees.base import RoleBehaviour, SimulationBehaviour
 from besman.trees.templates import check_template
 from besman.trees.timing import Deadline

@@ -18,7 +18,7 @@ from collections.abc import Mapping
 import py_trees
 from py_trees.common import Access, Status
 
-from besman.skills.validation import checked, text
+from besman.core.validation import checked, text
 from besman.trees.base import BEHAVIOUR
 
 

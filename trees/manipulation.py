@@ -11,9 +11,9 @@
   object to the other hand, letting go of it, making room).
 
 The reach, the carry and the return can come from skill templates learned from people
-(:mod:`besman.learning.pipeline`), instantiated for the move the leaf plans (the hand's move from the
-block's start to its planned end, :func:`~besman.sim.blocks.block_input`: the same for any object, place
-or task) and refined online where the template is unsure.
+(:mod:`besman.learning.pipeline.learn`), instantiated for the move the leaf plans (the hand's move from the
+block's start to its planned end, :func:`~besman.sim.block_simulation.block_input`: the same for any object,
+place or task) and refined online where the template is unsure.
 
 The subtrees that use them are in :mod:`besman.trees.idioms`.
 """
@@ -26,8 +26,9 @@ from typing import Any, ClassVar
 import numpy as np
 from py_trees.common import Access, Status
 
-from besman.learning.online import Refinement, refine_online, uncertainty
-from besman.sim.blocks import INPUT_NAMES, BlockStart, block_input, snapshot, steps_after
+from besman.core.errors import InputError
+from besman.learning.search.online import Refinement, refine_online, uncertainty
+from besman.sim.block_simulation import INPUT_NAMES, BlockStart, block_input, snapshot, steps_after
 from besman.sim.manipulation import (
     DEFAULT_PLAN,
     PickPlacePlan,
@@ -39,7 +40,6 @@ from besman.sim.manipulation import (
 from besman.sim.motions import FollowPrimitive, Motion
 from besman.sim.objects import yaw_of
 from besman.sim.primitives import shaped
-from besman.skills.errors import InputError
 from besman.trees.base import SimulationBehaviour
 from besman.trees.leaves import MotionLeaf
 from besman.trees.templates import check_template, check_template_fits
@@ -53,8 +53,8 @@ LEARNED = {**TEMPLATE_PARAMETERS, "refine_above": "float>=0"}
 
 class TemplateInstance:
     """A skill template's primitive for a block's move from configuration ``start`` to ``end`` (its
-    template input, :func:`~besman.sim.blocks.block_input`), as the planners take a learned move; keeps
-    the input of the last one it gave. A pool entry may instead condition on the move's end
+    template input, :func:`~besman.sim.block_simulation.block_input`), as the planners take a learned move;
+    keeps the input of the last one it gave. A pool entry may instead condition on the move's end
     configurations themselves (a baseline such as ProMP conditioning): it then has
     ``primitive_for_move(start, end)``."""
 
@@ -159,8 +159,9 @@ class _Plan(SimulationBehaviour):
     With a ``pool`` and a ``template`` name, the big move (reach or carry) is the template's
     instance for the move planned (:class:`TemplateInstance`) - a learned primitive moved to the planned
     end points - instead of a point-to-point move. With ``refine_above`` as well, an instance whose
-    template is less sure of its input than that (:func:`besman.learning.online.uncertainty`) is first
-    refined by at most 25 rollouts in a copy of the world (:func:`besman.learning.online.refine_online`)."""
+    template is less sure of its input than that (:func:`besman.learning.search.online.uncertainty`) is first
+    refined by at most 25 rollouts in a copy of the world
+    (:func:`besman.learning.search.online.refine_online`)."""
 
     source = ""
     block = ""

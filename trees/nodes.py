@@ -26,8 +26,8 @@ from typing import Any
 
 import py_trees
 
-from besman.skills.errors import InputError
-from besman.skills.plugins import plugin_modules, warn_plugin
+from besman.core.errors import InputError
+from besman.core.plugins import plugin_modules, warn_plugin
 from besman.trees.base import RoleBehaviour
 from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
 from besman.trees.guards import KeepApart
@@ -35,7 +35,6 @@ from besman.trees.idioms import grasp, grasp_then_place, place, return_home
 from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
 from besman.trees.loops import ForEach
 from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanPlace, PlanReturn, RiseClear
-from besman.trees.throwing import AimThrow, Throw
 from besman.trees.timing import SimTimeout, Wait
 
 WIRING = {"namespace": "str", "remap": "keys"}
@@ -191,8 +190,6 @@ NODE_TYPES: dict[str, NodeType] = {
             PlanPlace,
             PlanReturn,
             PlanMove,
-            AimThrow,
-            Throw,
         )
     },
     **{factory.node_type: subtree(factory) for factory in (grasp, place, return_home, grasp_then_place)},

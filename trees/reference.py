@@ -22,7 +22,7 @@ from typing import Any
 
 from py_trees.common import Access
 
-from besman.skills.errors import UnknownNameError
+from besman.core.errors import UnknownNameError
 from besman.trees.files import FORMAT_VERSION
 from besman.trees.nodes import NODE_TYPES, NodeType, Param
 

@@ -20,7 +20,7 @@ import keyword
 from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 _TEMPLATES: dict[str, Any] = {}
 _POOLS: dict[str, Mapping[str, Any]] = {}

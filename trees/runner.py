@@ -38,11 +38,9 @@ import numpy as np
 import py_trees
 from py_trees.common import Status
 
-from besman.sim.executor import Executor
-from besman.skills import MovementPrimitive
-from besman.skills.errors import InputError
-from besman.skills.reading import Limit, read_bytes
-from besman.skills.storage import (
+from besman.core.errors import InputError
+from besman.core.reading import Limit, read_bytes
+from besman.core.storage import (
     check_replaceable,
     check_schema_version,
     json_value,
@@ -51,8 +49,10 @@ from besman.skills.storage import (
     remove_temporaries,
     write_error,
 )
-from besman.skills.validation import CALLABLE, COUNT, PATH, checked, instance, optional, positive
-from besman.skills.writer_lock import WriterLock
+from besman.core.validation import CALLABLE, COUNT, PATH, checked, instance, optional, positive
+from besman.core.writer_lock import WriterLock
+from besman.sim.executor import Executor
+from besman.skills import MovementPrimitive
 from besman.trees.base import BEHAVIOUR
 
 SCHEMA_VERSION = 1
@@ -309,10 +309,10 @@ class LogStream:
     """A run's JSON-lines log, written as the run goes: the header now, one line per tick, the result at the
     end. Lines go to a temporary file beside ``path`` that becomes ``path`` when the result is written, so
     ``path`` is only ever a whole log; it replaces only an earlier run log (anything else there is refused:
-    :func:`~besman.skills.storage.check_replaceable`); another run writing the same ``path`` at the same
-    time is refused (:class:`~besman.skills.writer_lock.WriterLock`), and the temporaries of one killed
+    :func:`~besman.core.storage.check_replaceable`); another run writing the same ``path`` at the same
+    time is refused (:class:`~besman.core.writer_lock.WriterLock`), and the temporaries of one killed
     meanwhile are removed. A write that fails (a full disk) removes the temporary and the lock and raises a
-    :class:`~besman.skills.storage.WriteError` naming ``path``."""
+    :class:`~besman.core.storage.WriteError` naming ``path``."""
 
     def __init__(self, path: str | Path, run_info: dict) -> None:
         self.path = Path(path)

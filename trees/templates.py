@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from besman.skills.errors import BesmanError, InputError
+from besman.core.errors import BesmanError, InputError
 
 
 def check_template(name: str, pool: Mapping[str, Any] | None, template: str | None) -> None:

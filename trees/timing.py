@@ -16,9 +16,9 @@ from typing import Any, ClassVar
 import py_trees
 from py_trees.common import Status
 
+from besman.core.errors import InputError
+from besman.core.validation import checked, text
 from besman.sim.executor import Executor
-from besman.skills.errors import InputError
-from besman.skills.validation import checked, text
 from besman.trees.base import BEHAVIOUR, SimulationBehaviour, executor_of
 
 

@@ -18,10 +18,10 @@ import mujoco
 import py_trees
 from py_trees.common import Status
 
+from besman.core.errors import InputError
 from besman.sim.executor import Executor
 from besman.sim.overlays import template_spread
 from besman.sim.viewer import Viewer, within
-from besman.skills.errors import InputError
 from besman.trees.base import RoleBehaviour
 from besman.trees.leaves import InstantiateSkillTemplate
 from besman.trees.runner import Runner, jsonable, object_addresses, read_log

@@ -9,7 +9,7 @@ import os
 import sys
 
 from besman.commands.options import COUNT, MAX_SEED, SEED
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 
 def require_datasets(option: str = "--dataset") -> None:
@@ -41,7 +41,7 @@ def check_dataset(args: argparse.Namespace) -> None:
         raise InputError("--video records the camera into a dataset: give --dataset DIR")
     if args.dataset:
         require_datasets()
-        from besman.learning.dataset_writer import dataset_folder
+        from besman.datasets.writer import dataset_folder
 
         folder = dataset_folder(args.dataset)
         if getattr(args, "view", False):
@@ -59,7 +59,7 @@ def _record(args: argparse.Namespace) -> int:
             f"--seed {args.seed} --episodes {args.episodes}: the last run's seed would be {last}, seeds go "
             f"up to {MAX_SEED}"
         )
-    from besman.learning.dataset_writer import dataset_folder
+    from besman.datasets.writer import dataset_folder
     from besman.tasks import task
     from besman.tasks.recording import record_run, recorded_seeds
 
@@ -101,7 +101,7 @@ def _record(args: argparse.Namespace) -> int:
 
 def _dataset_show(args: argparse.Namespace) -> int:
     require_datasets("besman dataset show")
-    from besman.learning.dataset_reader import read_dataset
+    from besman.datasets.reader import read_dataset
 
     dataset = read_dataset(args.dataset)
     info = dataset.info

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 
 def _examples(args: argparse.Namespace) -> int:
@@ -14,7 +14,7 @@ def _examples(args: argparse.Namespace) -> int:
     import tempfile
 
     from besman import examples
-    from besman.skills.storage import WriteError, write_error
+    from besman.core.storage import WriteError, write_error
 
     source = examples.path()
     if args.copy is None:

@@ -20,8 +20,8 @@ def _roles(text: str) -> tuple[tuple[str, str], ...]:
 
 
 def _learn(args: argparse.Namespace) -> int:
-    from besman.learning.pipeline import LearnSettings, learn
-    from besman.skills.errors import InputError
+    from besman.core.errors import InputError
+    from besman.learning.pipeline.learn import LearnSettings, learn
     from besman.tasks import DEFAULT, TASKS, task
 
     chosen = task(args.task or DEFAULT)  # an unknown name is refused with the list, before any work
@@ -44,7 +44,7 @@ def _learn(args: argparse.Namespace) -> int:
         optimizer=args.optimizer,
     )
     result = learn(args.demos, args.out, settings, blocks=blocks, force=args.force)
-    from besman.learning.pipeline_sequence import subgoals
+    from besman.learning.pipeline.sequence_refinement import subgoals
     from besman.trees.learned import write_learned_tree
 
     tree = write_learned_tree(

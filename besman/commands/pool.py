@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 
 def _pool_ls(args: argparse.Namespace) -> int:

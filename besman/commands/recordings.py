@@ -6,14 +6,14 @@ import argparse
 import json
 
 from besman.commands.options import integer
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 
 def _segment(args: argparse.Namespace) -> int:
+    from besman.core.storage import check_output
     from besman.learning import load
-    from besman.learning.contact import ContactMarkers
-    from besman.learning.segmentation import segment
-    from besman.skills.storage import check_output
+    from besman.learning.segmentation.contact import ContactMarkers
+    from besman.learning.segmentation.segmenter import segment
 
     if args.example_labels and not args.examples:
         raise InputError("--example-labels chooses among the segments of --examples; give --examples too")
@@ -24,7 +24,7 @@ def _segment(args: argparse.Namespace) -> int:
     demo = load(args.file)
     from tqdm import tqdm
 
-    from besman.learning.segmentation import EXACT_UP_TO
+    from besman.learning.segmentation.segmenter import EXACT_UP_TO
 
     samples = int(demo.duration * 20.0)  # at segment()'s signal rate; pruned inference reports progress
     with tqdm(
@@ -63,7 +63,7 @@ def _segment(args: argparse.Namespace) -> int:
         "log_evidence": segmentation.log_evidence,
     }
     if args.plot:
-        from besman.learning.segmentation_plot import plot_segmentation
+        from besman.learning.segmentation.plot import plot_segmentation
 
         plot_segmentation(demo, segmentation, args.plot)
     if args.json:
@@ -84,7 +84,7 @@ def _few_shot_labels(args: argparse.Namespace, demo, segmentation) -> list[str |
     """Labels of the movements found: those of the nearest annotated segments of the example recordings
     (holds stay unlabelled)."""
     from besman.learning import DemonstrationError, load
-    from besman.learning.labelling import ground_truth_segments, label_few_shot, segments_of
+    from besman.learning.segmentation.labelling import ground_truth_segments, label_few_shot, segments_of
 
     wanted = args.example_labels.split(",") if args.example_labels else None
     examples = []

@@ -7,7 +7,7 @@ import json
 import sys
 
 from besman.commands.options import COUNT, integer
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 
 def _robot_table(name: str) -> dict:

@@ -48,7 +48,7 @@ def _span(numbers) -> str:
 
 
 def _experiment_throwing(args: argparse.Namespace) -> int:
-    from besman.learning.throwing_experiment import Experiment, ExperimentConfig
+    from besman.experiments.throwing.experiment import Experiment, ExperimentConfig
 
     config = (
         ExperimentConfig.quick(args.seeds or 1) if args.quick else ExperimentConfig(seeds=args.seeds or 3)

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from besman.commands.datasets import check_dataset, dataset_options
 from besman.commands.options import SEED
 from besman.commands.viewing import check_view, run_task, serve, view_options
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
 
 
 def _tree_show(args: argparse.Namespace) -> int:
@@ -25,7 +25,7 @@ def _tree_show(args: argparse.Namespace) -> int:
 def _tree_render(args: argparse.Namespace) -> int:
     import py_trees
 
-    from besman.skills.storage import check_output, write_atomically
+    from besman.core.storage import check_output, write_atomically
     from besman.trees import load_tree
 
     formats = {".svg": "svg", ".png": "png", ".dot": None}  # .dot: the DOT source itself, no Graphviz
@@ -115,7 +115,7 @@ def _tree_nodes(args: argparse.Namespace) -> int:
 
 
 def _tree_schema(args: argparse.Namespace) -> int:
-    from besman.skills.storage import check_output, write_atomically
+    from besman.core.storage import check_output, write_atomically
     from besman.tasks import task_names
     from besman.trees.reference import tree_schema
 
@@ -156,7 +156,7 @@ def _perturb_option(parser: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from besman.skills.storage import check_output
+    from besman.core.storage import check_output
     from besman.trees.runner import LOG_KIND
 
     check_view(args)
@@ -191,7 +191,7 @@ def _demo(args: argparse.Namespace) -> int:
         demos = ", ".join(name for name, entry in TASKS.items() if entry.tree is not None)
         raise InputError(f"task {chosen.name} has no demo (no default tree); demos: {demos}")
     if args.log:
-        from besman.skills.storage import check_output
+        from besman.core.storage import check_output
         from besman.trees.runner import LOG_KIND
 
         check_output(args.log, option="--log", suffixes=(".jsonl",), kind=LOG_KIND)

@@ -10,9 +10,9 @@ import argparse
 import sys
 import time
 
-from besman import stopped
 from besman.commands.options import PORT, positive
-from besman.skills.errors import InputError
+from besman.core.errors import InputError
+from besman.stopping import stopped
 
 
 def server_options(group) -> None:
@@ -110,8 +110,8 @@ def run_task(args: argparse.Namespace, *, task=None, tree=None, values: dict, lo
 def serve(viewers: list, code: int) -> int:
     """Keeps a viewer (anything with ``url`` and ``close()``) open until Ctrl-C or SIGTERM, which end it as
     they end every command: the viewer closed, one line (``besman: interrupted`` or ``besman: terminated``)
-    and exit 130 or 143 (:func:`besman.stopped`). ``code``, the command's own, is returned when there is no
-    viewer to serve."""
+    and exit 130 or 143 (:func:`besman.stopping.stopped`). ``code``, the command's own, is returned when there
+    is no viewer to serve."""
     if not viewers:
         return code
     print(f"the viewer stays at {viewers[0].url} until Ctrl-C", file=sys.stderr, flush=True)
@@ -140,8 +140,8 @@ def _view(args: argparse.Namespace) -> int:
 
 
 def _view_throw(args: argparse.Namespace, options: dict) -> int:
-    from besman.sim.throwing_view import ThrowingView
     from besman.skills.pool import SkillTemplatePool
+    from besman.tasks.throwing.view import ThrowingView
 
     pool = SkillTemplatePool(args.throw)
     if args.template not in pool:

@@ -1,12 +1,12 @@
 """Pick and place's building blocks as learning takes them: reach, carry and return
-(:mod:`besman.sim.blocks` simulates each on its own), the training tasks they are refined in, and rollouts
-of one block for many thetas as a batched task for policy search (:class:`BlockTask`, local processes or
-Ray).
+(:mod:`besman.sim.block_simulation` simulates each on its own), the training tasks they are refined in, and
+rollouts of one block for many thetas as a batched task for policy search (:class:`BlockRollouts`, local
+processes or Ray).
 
 A training task is a whole pick-and-place tau (object position and yaw, place and yaw, shape, size) drawn
 over the task's box; each block's template takes the hand's move over the block
-(:func:`~besman.sim.blocks.block_input`), which is what makes it usable for objects, places and tasks it was
-not learned in.
+(:func:`~besman.sim.block_simulation.block_input`), which is what makes it usable for objects, places and
+tasks it was not learned in.
 """
 
 from __future__ import annotations
@@ -15,8 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from besman.learning.blocks import BuildingBlocks
-from besman.sim.blocks import (
+from besman.core.moved import renamed
+from besman.learning.pipeline.building_blocks import BuildingBlocks
+from besman.sim.block_simulation import (
     BLOCKS,
     INPUT_NAMES,
     OBJECT,
@@ -28,7 +29,7 @@ from besman.sim.blocks import (
     restore,
     rollout,
 )
-from besman.sim.evaluation import BatchedTask, Evaluation
+from besman.sim.evaluation import BatchedRollouts, Evaluation
 from besman.sim.executor import Executor
 from besman.sim.world import World
 from besman.skills import MovementPrimitive
@@ -36,15 +37,15 @@ from besman.tasks.pick_place.sequence import SequenceConfig
 
 
 def _task():
-    from besman.tasks.pick_place import PickPlace
+    from besman.tasks import task
 
-    return PickPlace()
+    return task("pick-place")
 
 
 def world(robot: str, tau) -> World:
     """The tabletop world of ``robot`` with the object of the pick-and-place ``tau`` (its middle mass and
     friction)."""
-    from besman.tasks.pick_place import the_object
+    from besman.tasks.pick_place.scene import the_object
 
     task = _task()
     return task.world(robot, the_object(robot, task.split(tau), None))
@@ -74,11 +75,11 @@ class BlockTaskConfig:
     reward: Reward = field(default_factory=Reward)
     robot: str = "aila"
 
-    def build(self) -> BlockTask:
-        return BlockTask(self)
+    def build(self) -> BlockRollouts:
+        return BlockRollouts(self)
 
 
-class BlockTask(BatchedTask):
+class BlockRollouts(BatchedRollouts):
     """Rollouts of one block for thetas of its primitive (the weights matter: the end points are planned
     per tau) in pick-and-place taus; rewards by :class:`Reward`, details :class:`BlockOutcome`."""
 
@@ -143,3 +144,6 @@ def building_blocks(task, robot: str) -> BuildingBlocks:
         target="/task/place",
         sequence=lambda shapes: SequenceConfig(robot, shapes),
     )
+
+
+__getattr__ = renamed(__name__, {"BlockTask": "BlockRollouts"})  # the old name, for one release

@@ -18,9 +18,11 @@ from dataclasses import dataclass, fields
 import mujoco
 import numpy as np
 
+from besman.core.moved import renamed
+from besman.core.validation import checked, instance
 from besman.robots.catalogue import ROBOT
-from besman.sim.blocks import OBJECT, step_motion
-from besman.sim.evaluation import BatchedTask, Evaluation
+from besman.sim.block_simulation import OBJECT, step_motion
+from besman.sim.evaluation import BatchedRollouts, Evaluation
 from besman.sim.executor import Executor, limit_violations
 from besman.sim.manipulation import (
     PICK_STEPS,
@@ -34,7 +36,6 @@ from besman.sim.motions import MotionStatus
 from besman.sim.objects import GraspableObject
 from besman.sim.outcomes import lifted, placement
 from besman.sim.world import World
-from besman.skills.validation import checked, instance
 
 FAILURE_REWARD = -1.0
 
@@ -61,27 +62,27 @@ class PickPlaceConfig:
 
     robot: str = "aila"
 
-    def build(self) -> PickPlaceTask:
-        return PickPlaceTask(self)
+    def build(self) -> PickPlaceRollouts:
+        return PickPlaceRollouts(self)
 
 
-class PickPlaceTask(BatchedTask):
+class PickPlaceRollouts(BatchedRollouts):
     """The pick-and-place task; see the module documentation. ``evaluate(thetas (N, 6), taus (N, 10))``:
     reward = -placement error (m) on success, else -1; details are :class:`PickPlaceDetail`; the episodes
     run in worker processes (the control loop is Python: threads would wait on each other)."""
 
     @checked(config=instance(PickPlaceConfig, "a PickPlaceConfig"))
     def __init__(self, config: PickPlaceConfig = PickPlaceConfig()) -> None:
-        from besman.tasks.pick_place import PickPlace
+        from besman.tasks import task
 
         self.config = config
-        self.task = PickPlace()
+        self.task = task("pick-place")
         self.bounds = self.task.bounds(config.robot)
         self._worlds: dict[GraspableObject, World] = {}
 
     def world(self, tau) -> World:
         """A world with the object of ``tau`` (built once per object, then kept)."""
-        from besman.tasks.pick_place import the_object
+        from besman.tasks.pick_place.scene import the_object
 
         item = the_object(self.config.robot, self.task.split(tau), None)
         if item not in self._worlds:
@@ -193,3 +194,6 @@ def _failure(world: World, step: str, message: str, monitor: _BoxMonitor | None 
     return PickPlaceDetail(
         False, monitor.grasped, None, None, time, monitor.max_force, step, f"{step}: {message}", violations
     )
+
+
+__getattr__ = renamed(__name__, {"PickPlaceTask": "PickPlaceRollouts"})  # the old name, for one release

@@ -5,8 +5,8 @@ The baseline instead learns the distribution of the block's joint trajectories i
 Probabilistic Movement Primitive (Paraschos et al., NIPS 2013; :class:`movement_primitives.promp.ProMP`)
 and, for a new move, conditions it on the move's start and end configurations (via-points at normalised
 times 0 and 1). Its mean trajectory is imitated by the project's joint-space DMP (the prototype's basis
-and duration, at rest at both ends, as :func:`besman.learning.retargeting.retarget` imitates a shape),
-which the planners then move exactly to the end points (:func:`besman.sim.primitives.shaped`).
+and duration, at rest at both ends, as :func:`besman.learning.pipeline.retargeting.retarget` imitates a
+shape), which the planners then move exactly to the end points (:func:`besman.sim.primitives.shaped`).
 
 The training trajectories are what the learned thetas execute in the training tasks: each task's theta in
 the template's prototype, moved to the block's planned start and end configurations for that task
@@ -38,8 +38,8 @@ from pathlib import Path
 import numpy as np
 from movement_primitives.promp import ProMP
 
+from besman.core.errors import InputError
 from besman.skills import DMP, MovementPrimitive, SkillTemplate, SkillTemplatePool
-from besman.skills.errors import InputError
 
 WEIGHT_CHOICES = (4, 6, 8, 10, 15)  # the ProMP's weights per joint that leave-one-out chooses from
 STEPS = 101  # samples of a time-normalised trajectory: the EM's matrices grow with (steps * joints)^2
@@ -79,7 +79,7 @@ def training_moves(template: SkillTemplate, robot: str | None = None) -> Trainin
     the robot the template was learned on), with the planner as it is now: a task whose move the planner
     has changed since (another grasp, say) gives the learned theta shaped to the new move, as the template
     itself is used (:func:`changed_moves` counts them)."""
-    from besman.sim.blocks import block_input
+    from besman.sim.block_simulation import block_input
     from besman.sim.executor import Executor
     from besman.sim.primitives import shaped
     from besman.tasks.pick_place.blocks import start, world

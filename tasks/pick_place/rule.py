@@ -4,7 +4,7 @@ after settling), and
 for the pick alone whether the box is in the hand and up (:func:`~besman.sim.outcomes.lifted`).
 
 The same predicates judge the task's scripted episodes (:mod:`besman.tasks.pick_place.episode`) and the
-rewards of its learned blocks (:mod:`besman.sim.blocks`), so all of them judge a final state alike.
+rewards of its learned blocks (:mod:`besman.sim.block_simulation`), so all of them judge a final state alike.
 """
 
 from __future__ import annotations

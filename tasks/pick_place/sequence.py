@@ -8,13 +8,14 @@ block's primitive; the object may be pushed during the reach (:data:`~besman.tas
 and its mass and friction are drawn from the family's ranges. Every rollout draws its own perturbations
 from the seed in its tau, so the refinement meets the variety the skill must stand.
 
-A block's parameters (:class:`SequenceTask`, per block in :data:`~besman.sim.blocks.BLOCKS` order): the
-forcing weights of its primitive, then its subgoals (:data:`SUBGOALS`: the plan's numbers where it hands
-over to the next block, as offsets from the default plan in units of :data:`SUBGOAL_SCALE`). Its cost: its
-own motion's (duration, path, peak jerk, joint-limit margin, collisions: :class:`~besman.sim.blocks.Reward`)
-and the failure's if the task failed in it: the reach where the grasp fails (planning it, the pick steps,
-the lift), the carry where the place fails (planning it, the place steps, the task's placement rule), the
-return where it does not arrive. A block after the one that failed did not run: its cost is NaN.
+A block's parameters (:class:`SequenceRollouts`, per block in :data:`~besman.sim.block_simulation.BLOCKS`
+order): the forcing weights of its primitive, then its subgoals (:data:`SUBGOALS`: the plan's numbers where it
+hands over to the next block, as offsets from the default plan in units of :data:`SUBGOAL_SCALE`). Its cost:
+its own motion's (duration, path, peak jerk, joint-limit margin, collisions:
+:class:`~besman.sim.block_simulation.Reward`) and the failure's if the task failed in it: the reach where the
+grasp fails (planning it, the pick steps, the lift), the carry where the place fails (planning it, the place
+steps, the task's placement rule), the return where it does not arrive. A block after the one that failed did
+not run: its cost is NaN.
 
 tau: the pick-and-place tau, then the rollout's seed and whether the object is pushed (0 or 1).
 """
@@ -26,9 +27,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from besman.learning.pipeline_refinement import forcing_weights
-from besman.sim.blocks import BLOCKS, OBJECT, BlockOutcome, Reward, motion_measures, step_motion
-from besman.sim.evaluation import BatchedTask, Evaluation
+from besman.core.moved import renamed
+from besman.learning.pipeline.refinement import forcing_weights
+from besman.sim.block_simulation import BLOCKS, OBJECT, BlockOutcome, Reward, motion_measures, step_motion
+from besman.sim.evaluation import BatchedRollouts, Evaluation
 from besman.sim.executor import Executor
 from besman.sim.manipulation import (
     DEFAULT_PLAN,
@@ -48,7 +50,7 @@ from besman.sim.outcomes import lifted, placement
 from besman.sim.primitives import shaped
 from besman.sim.world import World
 from besman.skills import MovementPrimitive
-from besman.skills.tasks import TaskBounds
+from besman.skills.task_bounds import TaskBounds
 
 SUBGOALS = {"reach": GRASP_SUBGOALS, "carry": PLACE_SUBGOALS, "return": ()}
 # Plan units per unit of a subgoal parameter: an exploration of 0.1 (the forcing weights' spread) moves the
@@ -96,19 +98,19 @@ class SequenceConfig:
     shapes: tuple[str, ...]
     reward: Reward = field(default_factory=Reward)
 
-    def build(self) -> SequenceTask:
-        return SequenceTask(self)
+    def build(self) -> SequenceRollouts:
+        return SequenceRollouts(self)
 
 
-class SequenceTask(BatchedTask):
+class SequenceRollouts(BatchedRollouts):
     """Whole-task rollouts for the blocks' parameters (see the module documentation); rewards are minus the
     total cost, details :class:`SequenceOutcome`."""
 
     def __init__(self, config: SequenceConfig) -> None:
-        from besman.tasks.pick_place import PickPlace
+        from besman.tasks import task
 
         self.config = config
-        self.task = PickPlace()
+        self.task = task("pick-place")
         task_bounds = self.task.bounds(config.robot)
         self.bounds = TaskBounds(
             (*task_bounds.names, "rollout_seed", "pushed"),
@@ -156,7 +158,7 @@ class SequenceTask(BatchedTask):
         return found
 
     def world(self, values) -> World:
-        from besman.tasks.pick_place import the_object
+        from besman.tasks.pick_place.scene import the_object
 
         item = the_object(self.config.robot, values, None)
         if item not in self._worlds:
@@ -197,7 +199,7 @@ def run_sequence(
 ) -> SequenceOutcome:
     """One whole-task rollout in ``world`` for the task ``values``, the blocks' ``primitives`` and plans,
     perturbed by draws from ``rng`` (pushed if ``pushed``); see the module documentation."""
-    from besman.tasks.pick_place import PERTURBATIONS, family
+    from besman.tasks.pick_place.scene import PERTURBATIONS, family
 
     world.reset()
     item = world.objects[OBJECT]
@@ -288,9 +290,9 @@ def run_sequence(
 
 def _run_block(executor: Executor, steps, planned, item: str, block: str, observe, ends, allowed):
     """Runs a block's pick-and-place ``steps``: the block's own motion (the step named ``block``) measured
-    as soon as it ends (:func:`~besman.sim.blocks.motion_measures`, between the configurations ``ends``,
-    touching ``allowed`` objects), then the steps that decide it. Returns the measures and the failure's
-    message (None if every step succeeded and the object stayed in the hand where it must)."""
+    as soon as it ends (:func:`~besman.sim.block_simulation.motion_measures`, between the configurations
+    ``ends``, touching ``allowed`` objects), then the steps that decide it. Returns the measures and the
+    failure's message (None if every step succeeded and the object stayed in the hand where it must)."""
     first, began = len(executor.log), executor.time
     measures = motion_measures(executor, first, first, began, ends, allowed)  # if it never starts
     for step in steps:
@@ -314,3 +316,6 @@ def _set_properties(world: World, name: str, mass: float, friction: float) -> No
     model.body_mass[body] = mass
     model.body_inertia[body] *= ratio
     model.geom_friction[model.body_geomadr[body], 0] = friction
+
+
+__getattr__ = renamed(__name__, {"SequenceTask": "SequenceRollouts"})  # the old name, for one release

@@ -1,0 +1,164 @@
+"""Throwing leaves for the PA-10: aim with a skill template, then throw.
+
+- :class:`AimThrow` reads the ``target`` (x, y on the floor) and instantiates the throwing skill template
+  there: Theta(tau) is the throw, Omega(tau) the template's uncertainty (Metzen et al. 2014). Where the
+  template's own throw would miss by more than ``accept`` m in simulation, the leaf refines it as the paper
+  does, by CMA-ES started from N(Theta(tau), Omega(tau)) on simulated throws (the task's rollouts, apart
+  from the running simulation) until one lands within ``accept`` or ``budget`` throws are spent. It writes
+  the throw's parameters (role ``throw``).
+- :class:`Throw` executes the throw in the running simulation
+  (:class:`~besman.tasks.throwing.executor.ThrowingExecutor`), RUNNING while the ball flies, and writes where
+  it landed (role ``landing``); it succeeds if the ball lands within ``tolerance`` m of the ``target``.
+
+Blackboard keys: ``/<ns>/throw``, the throw aimed at ``/<ns>/target`` (the instantiated, possibly refined,
+template), ``AimThrow`` writes and ``Throw`` reads; ``/<ns>/landing``, where the ball first touched the floor
+(x, y), ``Throw`` writes. Both are node types as any distribution's are (:data:`NODE_TYPES`, named under
+the entry-point group ``besman.node_types`` in besman's own ``pyproject.toml``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+from py_trees.common import Access, Status
+
+from besman.core.errors import InputError
+from besman.core.validation import SEED
+from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
+from besman.sim.motions import MotionStatus
+from besman.tasks.throwing.executor import ThrowingExecutor
+from besman.trees.base import SimulationBehaviour
+from besman.trees.manipulation import TEMPLATE_PARAMETERS
+
+
+def _throwing(name: str, executor) -> ThrowingExecutor:
+    if not isinstance(executor, ThrowingExecutor):
+        raise InputError(f"{name}: throwing needs the PA-10's throwing executor (besman demo throw)")
+    return executor
+
+
+class AimThrow(SimulationBehaviour):
+    """Instantiates the throwing template ``template`` of ``pool`` for the ``target`` and refines it in
+    simulation where it would miss by more than ``accept`` m; writes ``throw``."""
+
+    roles: ClassVar = {"target": Access.READ, "throw": Access.WRITE}
+    parameters: ClassVar = {**TEMPLATE_PARAMETERS, "accept": "float>0", "budget": "int>=0", "seed": "int"}
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        pool: Mapping[str, Any],
+        template: str = "throw",
+        accept: float = 0.25,
+        budget: int = 400,
+        seed: int = 0,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ) -> None:
+        super().__init__(name, namespace=namespace, remap=remap)
+        if template not in pool:
+            raise InputError(f"{name}: the pool has no template {template!r} (has: {', '.join(pool)})")
+        self.template = pool[template]
+        self.accept, self.budget = accept, budget
+        self.seed = SEED(f"{name}: seed", seed)  # out of range: refused with the file, not mid-run
+        self.instantiated: tuple | None = None  # (template, tau) of the last aim, for viewers
+        self.rollouts = 0  # simulated throws of the last aim
+        self.expected_miss: float | None = None  # m, of the chosen throw in simulation
+        self.use("target")
+        self.use("throw")
+
+    def setup(self, **kwargs) -> None:
+        super().setup(**kwargs)
+        _throwing(self.name, self.executor)
+
+    def update(self) -> Status:
+        task = self.executor.task
+        tau = np.asarray(self.blackboard.get("target"), dtype=float)
+        try:
+            self.template.box.check(tau)
+            mean, covariance = self.template.distribution(tau)
+        except ValueError as error:
+            self.feedback_message = f"target {tau.tolist()}: {error}"
+            return Status.FAILURE
+        (predicted,) = task.evaluate(mean[None], tau[None]).rewards
+        best, reward, self.rollouts = mean, predicted, 1
+        if -reward > self.accept**2 and self.budget > 0:
+            search = make_optimizer("cmaes", WarmStart(mean, covariance), seed=self.seed)
+            (result,) = policy_search(
+                lambda thetas, _: task.evaluate(thetas, np.repeat(tau[None], len(thetas), axis=0)).rewards,
+                [search],
+                budget=self.budget,
+                evaluate_start=False,
+                target_reward=-(self.accept**2),
+            )
+            self.rollouts += len(result.rewards)
+            if result.best_reward > reward:
+                best, reward = result.best_theta, result.best_reward
+        self.expected_miss = float(np.sqrt(-reward)) if reward > -1000 else None
+        self.instantiated = (self.template, tau)
+        self.blackboard.set("throw", best, overwrite=True)
+        predicted_miss = "no landing" if predicted <= -1000 else f"{np.sqrt(-predicted):.2f} m"
+        expected = "no landing" if self.expected_miss is None else f"{self.expected_miss:.2f} m"
+        self.feedback_message = (
+            f"template at {np.round(tau, 2).tolist()}: misses by {predicted_miss}; "
+            f"after {self.rollouts} simulated throws: {expected}"
+        )
+        return Status.SUCCESS
+
+
+class Throw(SimulationBehaviour):
+    """Throws ``throw`` and writes the ``landing``; succeeds if it is within ``tolerance`` m of ``target``."""
+
+    roles: ClassVar = {"throw": Access.READ, "target": Access.READ, "landing": Access.WRITE}
+    parameters: ClassVar = {"tolerance": "float>0"}
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        tolerance: float = 0.5,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ) -> None:
+        super().__init__(name, namespace=namespace, remap=remap)
+        self.tolerance = tolerance
+        self.flight = None
+        self.problem = ""
+        for role in self.roles:
+            self.use(role)
+
+    def setup(self, **kwargs) -> None:
+        super().setup(**kwargs)
+        _throwing(self.name, self.executor)
+
+    def initialise(self) -> None:
+        self.problem, self.flight = "", None
+        try:
+            self.flight = self.executor.start_throw(self.blackboard.get("throw"))
+        except (ValueError, KeyError) as error:
+            self.problem = str(error)
+
+    def update(self) -> Status:
+        if self.problem:
+            self.feedback_message = self.problem
+            return Status.FAILURE
+        flight = self.flight
+        if flight.status is MotionStatus.RUNNING:
+            self.feedback_message = "released, in flight" if flight.step > flight.release_step else "swinging"
+            return Status.RUNNING
+        if flight.status is MotionStatus.FAILED:
+            self.feedback_message = flight.failure
+            return Status.FAILURE
+        self.blackboard.set("landing", flight.landing, overwrite=True)
+        target = np.asarray(self.blackboard.get("target"), dtype=float)
+        miss = float(np.linalg.norm(flight.landing - target))
+        self.feedback_message = (
+            f"landed at {np.round(flight.landing, 2).tolist()}, {miss:.2f} m from the target"
+        )
+        return Status.SUCCESS if miss <= self.tolerance else Status.FAILURE
+
+
+NODE_TYPES = (AimThrow, Throw)  # registered by besman.trees.nodes (its entry points)
