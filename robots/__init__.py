@@ -10,7 +10,7 @@ Menagerie's with parts attached), joint groups, motion limits, arms with their t
 its tabletop layout. ``load(name)`` assembles and compiles the model and returns a :class:`Robot`.
 """
 
-from besman.skills.lazy import lazy_names
+from besman.core.lazy import lazy_names
 
 # Where each name lives; imported on first use, so that reading a description (listing and showing tasks)
 # does not bring scipy's linear algebra and the inverse kinematics with it.

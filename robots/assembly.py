@@ -31,12 +31,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from besman.core.errors import InputError
+from besman.core.validation import checked, instance
 from besman.robots import menagerie, packages
 from besman.robots.description import DescriptionError, ModelSource, RobotDescription
 from besman.robots.fields import finite_number
 from besman.robots.model_files import check_assets_found, check_model_files
-from besman.skills.errors import InputError
-from besman.skills.validation import checked, instance
 
 JOINT = mujoco.mjtTrn.mjTRN_JOINT
 NOT_LIMITED = mujoco.mjtLimited.mjLIMITED_FALSE

@@ -11,10 +11,10 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+from besman.core.errors import BesmanError, InputError, UnknownNameError
+from besman.core.plugins import plugin_modules, warn_plugin
+from besman.core.validation import CALLABLE, checked, instance, optional
 from besman.robots.description import RobotDescription, read_description
-from besman.skills.errors import BesmanError, InputError, UnknownNameError
-from besman.skills.plugins import plugin_modules, warn_plugin
-from besman.skills.validation import CALLABLE, checked, instance, optional
 
 # The check of an argument that names a robot: a shipped robot's name or a robot folder.
 ROBOT = instance((str, os.PathLike), "a robot name or folder (str or os.PathLike)")

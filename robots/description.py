@@ -83,6 +83,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from besman.core.storage import check_schema_version, optional_field, read_json
 from besman.robots.fields import (
     DescriptionError,
     finite_number,
@@ -92,7 +93,6 @@ from besman.robots.fields import (
     require,
 )
 from besman.robots.tabletop import TabletopLayout, read_tabletop, task_sections
-from besman.skills.storage import check_schema_version, optional_field, read_json
 
 SCHEMA_VERSION = 2
 # Simulation options a description may set (an attached gripper may need them; the parent's are kept).

@@ -6,8 +6,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from besman.skills.errors import BesmanError
-from besman.skills.storage import require_field
+from besman.core.errors import BesmanError
+from besman.core.storage import require_field
 
 
 class DescriptionError(BesmanError):

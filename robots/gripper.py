@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from besman.core.errors import InputError
 from besman.robots.description import JointLimitSpec
-from besman.skills.errors import InputError
 
 
 @dataclass(frozen=True, eq=False)

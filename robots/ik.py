@@ -29,11 +29,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg.lapack import dposv as _cholesky_solve
 
+from besman.core.errors import InputError
+from besman.core.validation import COUNT, SEED, checked, instance, integer, numeric, optional, text
 from besman.robots.kinematics import site_id
 from besman.robots.robot import Robot
 from besman.skills import quaternion
-from besman.skills.errors import InputError
-from besman.skills.validation import COUNT, SEED, checked, instance, integer, numeric, optional, text
 
 MAX_JOINT_STEP = 0.3  # rad or m per iteration (trust region)
 STALL = 1e-9  # an iterate that moves no joint by more than this has stalled

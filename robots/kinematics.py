@@ -10,10 +10,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from besman.core.errors import InputError
+from besman.core.validation import checked, instance, optional, text
 from besman.robots.robot import Robot
-from besman.skills.errors import InputError
 from besman.skills.quaternion import from_matrix
-from besman.skills.validation import checked, instance, optional, text
 
 QUATERNION_ORDER = "wxyz"
 

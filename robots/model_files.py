@@ -3,7 +3,7 @@
 MuJoCo opens a model's file, the files it includes and its meshes, textures and height fields by path, with
 no check of its own: a FIFO among them would block the load forever and ``/dev/zero`` would fill the memory.
 :func:`check_model_files` therefore walks the model first - its XML read here within a bound, includes and
-nested models followed - and checks every file it names (:mod:`besman.skills.reading`): a regular file of at
+nested models followed - and checks every file it names (:mod:`besman.core.reading`): a regular file of at
 most :data:`MAX_XML_BYTES` for XML and :data:`MAX_ASSET_BYTES` for a mesh, texture or height field. MuJoCo
 looks for a named file beside the main model or beside the including file, under the compiler's
 ``meshdir``, ``texturedir`` or ``assetdir``; every such place where a file exists is checked.
@@ -17,9 +17,9 @@ from pathlib import Path
 
 import mujoco
 
+from besman.core.errors import InputError
+from besman.core.reading import open_file, read_bytes
 from besman.robots.fields import DescriptionError
-from besman.skills.errors import InputError
-from besman.skills.reading import open_file, read_bytes
 
 MAX_XML_BYTES = 16_000_000  # a model's XML (the shipped robots' are at most 40 kB)
 MAX_ASSET_BYTES = 256_000_000  # a mesh, texture or height field (the largest shipped mesh is 8 MB)

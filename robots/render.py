@@ -13,9 +13,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from besman.core.errors import InputError
+from besman.core.storage import check_output, write_atomically
 from besman.robots.robot import Robot
-from besman.skills.errors import InputError
-from besman.skills.storage import check_output, write_atomically
 
 
 def render(

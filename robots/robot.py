@@ -17,12 +17,12 @@ from types import MappingProxyType
 import mujoco
 import numpy as np
 
+from besman.core.errors import InputError, UnknownNameError
+from besman.core.validation import checked, instance, optional, text
 from besman.robots.assembly import build_spec
 from besman.robots.catalogue import ROBOT, describe
 from besman.robots.description import DescriptionError, GripperSpec, RobotDescription
 from besman.robots.gripper import Gripper
-from besman.skills.errors import InputError, UnknownNameError
-from besman.skills.validation import checked, instance, optional, text
 
 
 def _frozen(values, dtype=float) -> np.ndarray:
