@@ -9,6 +9,8 @@ import importlib
 import sys
 from collections.abc import Callable, Mapping
 
+from besman.core.moved import MOVED_NAMES, old_names
+
 
 def lazy_names(package: str, homes: Mapping[str, str]) -> tuple[Callable, Callable]:
     """The ``__getattr__`` and ``__dir__`` of ``package`` whose names live in ``homes`` (name -> module name
@@ -16,6 +18,8 @@ def lazy_names(package: str, homes: Mapping[str, str]) -> tuple[Callable, Callab
 
     def __getattr__(name: str):
         if name not in homes:
+            if package in MOVED_NAMES:  # a name that left the package, for one release
+                return old_names(package)(name)
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
         home = homes[name]
         value = getattr(importlib.import_module(home if "." in home else f"{package}.{home}"), name)

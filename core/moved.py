@@ -78,6 +78,25 @@ MOVED = {
     "besman.learning.promp_baseline": "besman.tasks.pick_place.promp_baseline",
 }
 
+# Names that left a module or were renamed: module -> {old name: "new module:new name"}.
+MOVED_NAMES = {
+    "besman.sim": {
+        "ThrowingConfig": "besman.tasks.throwing.rollouts:ThrowingConfig",
+        "ThrowingTask": "besman.tasks.throwing.rollouts:ThrowingRollouts",
+        "throwing_world": "besman.tasks.throwing.world:throwing_world",
+    },
+    "besman.sim.world": {"throwing_world": "besman.tasks.throwing.world:throwing_world"},
+    "besman.sim.evaluation": {"BatchedTask": "besman.sim.evaluation:BatchedRollouts"},
+    "besman.trees": {
+        "AimThrow": "besman.tasks.throwing.leaves:AimThrow",
+        "Throw": "besman.tasks.throwing.leaves:Throw",
+    },
+    "besman.tasks.throwing.rollouts": {"ThrowingTask": "besman.tasks.throwing.rollouts:ThrowingRollouts"},
+    "besman.tasks.pick_place.episode": {"PickPlaceTask": "besman.tasks.pick_place.episode:PickPlaceRollouts"},
+    "besman.tasks.pick_place.sequence": {"SequenceTask": "besman.tasks.pick_place.sequence:SequenceRollouts"},
+    "besman.tasks.pick_place.blocks": {"BlockTask": "besman.tasks.pick_place.blocks:BlockRollouts"},
+}
+
 
 class MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     """Finds the old names of :data:`MOVED` and loads each as its new module."""
@@ -105,14 +124,16 @@ def install() -> None:
         sys.meta_path.append(MovedModules())
 
 
-def renamed(module: str, names: dict[str, str]):
-    """The ``__getattr__`` of ``module`` whose names ``names`` (old -> new) were renamed: an old name gives
-    the new one's object, for one release, with a :class:`DeprecationWarning`."""
+def old_names(module: str):
+    """The ``__getattr__`` of ``module`` for the names that left it or were renamed (:data:`MOVED_NAMES`): an
+    old name gives the new one's object, for one release, with a :class:`DeprecationWarning`."""
+    names = MOVED_NAMES[module]
 
     def __getattr__(name: str):
         if name not in names:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        warnings.warn(f"{module}.{name} is now {names[name]}", DeprecationWarning, stacklevel=2)
-        return getattr(sys.modules[module], names[name])
+        home, new = names[name].split(":")
+        warnings.warn(f"{module}.{name} is now {home}.{new}", DeprecationWarning, stacklevel=2)
+        return getattr(importlib.import_module(home), new)
 
     return __getattr__

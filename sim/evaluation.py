@@ -39,7 +39,7 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from besman.core.errors import InputError
-from besman.core.moved import renamed
+from besman.core.moved import old_names
 from besman.core.validation import finite_array
 from besman.sim import reaper
 from besman.skills.task_bounds import TaskBounds
@@ -297,4 +297,4 @@ def evaluate_on_ray(
     return Evaluation.concatenate(ray.get(futures))
 
 
-__getattr__ = renamed(__name__, {"BatchedTask": "BatchedRollouts"})  # the old name, for one release
+__getattr__ = old_names(__name__)  # the old names, for one release (besman.core.moved)

@@ -21,12 +21,10 @@ import numpy as np
 from besman.core.errors import InputError, UnknownNameError
 from besman.core.validation import (
     CALLABLE,
-    COUNT,
     checked,
     instance,
     integer,
     items,
-    non_negative,
     optional,
     positive,
     text,
@@ -45,19 +43,6 @@ from besman.sim.world import World
 RUN_CHUNK = 50
 
 
-@checked(
-    control_period=positive,
-    arrival_tolerance=positive,
-    lag_tolerance=positive,
-    following_tolerance=positive,
-    ik_position_tolerance=positive,
-    ik_orientation_tolerance=positive,
-    ik_knot_period=positive,
-    settle_cycles=integer(0),
-    range_tolerance=non_negative,
-    lookahead_cycles=COUNT,
-    arrival_timeout=positive,
-)
 class Executor:
     """Streams Ruckig-smoothed commands to a world's robot; see the module documentation."""
 

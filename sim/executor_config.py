@@ -5,7 +5,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from besman.core.validation import COUNT, checked, integer, non_negative, positive
 
+
+@checked(
+    control_period=positive,
+    arrival_tolerance=positive,
+    lag_tolerance=positive,
+    following_tolerance=positive,
+    ik_position_tolerance=positive,
+    ik_orientation_tolerance=positive,
+    ik_knot_period=positive,
+    settle_cycles=integer(0),
+    range_tolerance=non_negative,
+    lookahead_cycles=COUNT,
+    arrival_timeout=positive,
+)
 @dataclass(frozen=True)
 class ExecutorConfig:
     """Control rate and tolerances.

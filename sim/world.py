@@ -22,6 +22,7 @@ import numpy as np
 
 import besman.robots as robots
 from besman.core.errors import InputError, UnknownNameError
+from besman.core.moved import old_names
 from besman.core.validation import checked, instance, items, number, text
 from besman.robots import Pose, Robot, RobotDescription
 from besman.robots.catalogue import ROBOT
@@ -220,3 +221,6 @@ def tabletop_world(objects: tuple[GraspableObject, ...] = (DEFAULT_BOX,), robot:
     for index, item in enumerate(objects):
         _add_object(spec, item, [start[0], start[1] + 0.15 * index, table.height + item.half_height])
     return World(description, spec, tuple(objects), (table, shelf), layout)
+
+
+__getattr__ = old_names(__name__)  # the old names, for one release (besman.core.moved)

@@ -18,7 +18,7 @@ the demos, ``besman run``, learning rewards and the benchmarks all use.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -91,6 +91,18 @@ class Scene:
     observe: Observer | None = None
 
 
+@dataclass(frozen=True)
+class Finding:
+    """One robot check of one arm (``besman robots check``, :mod:`besman.tasks.robot_check`): whether it
+    passed, what it measured, and what to change if it did not."""
+
+    arm: str
+    check: str
+    passed: bool
+    measured: str
+    fix: str = ""
+
+
 class Task:
     """A task of the registry; a subclass per task sets the class attributes and the methods below."""
 
@@ -152,6 +164,16 @@ class Task:
     def facts(self, robot: str) -> dict:
         """More JSON-ready facts of the task on ``robot`` for ``besman tasks show`` (e.g. its areas)."""
         return {}
+
+    def robot_checks(self, robot: str, description) -> Iterator[Finding]:
+        """The task's own checks of ``robot`` (``description``: its
+        :class:`~besman.robots.RobotDescription`) for ``besman robots check``, one
+        :class:`Finding` at a time (the checks' helpers are there too); none by
+        default. They run after the arm and gripper checks, on a robot with a tabletop, for every task of
+        the registry once, whether it fits the robot or not: checks of what the task needs yield nothing
+        where :meth:`fits` is false, a check of why it does not fit says so (pick-place's place area). A
+        subclass inherits its parent's checks: one that is not their owner yields nothing."""
+        return iter(())
 
     # -- shared --------------------------------------------------------------------------------------------
 

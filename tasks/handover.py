@@ -18,7 +18,7 @@ them, and optionally ``grip``, :class:`HandoverNumbers`).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, ClassVar
 
@@ -31,6 +31,8 @@ from besman.tasks.base import Scene, Task, TaskValue
 
 if TYPE_CHECKING:
     from besman.sim.executor import Executor
+    from besman.sim.world import World
+    from besman.tasks.robot_check import Finding
 
 Area = tuple[tuple[float, float], tuple[float, float]]  # (x0, x1), (y0, y1) in m
 
@@ -41,6 +43,10 @@ BAR = GraspableObject("bar", size=(0.02, BAR_HALF_LENGTH, 0.02), mass=0.2, rgba=
 GRIP = 0.08  # m from the bar's middle where each hand holds it, unless the robot says otherwise
 # The grips a robot may give: the hands' pads (4 cm) on the bar, and the hands apart.
 GRIPS = (0.04, BAR_HALF_LENGTH - 0.02)
+# deg the bar held by one end may turn on in the grip in robot_check.HOLD_TIME, settled (``besman robots
+# check``; the two WidowX AI without the no-slip solver: 2.8; AILA, the OpenArm, the WidowX AI with it: 0.1
+# at most).
+BAR_TURN = 1.0
 
 
 @dataclass(frozen=True)
@@ -224,6 +230,43 @@ class Handover(Task):
 
     def facts(self, robot: str) -> dict:
         return {"handover": self._poses(self.numbers(robot))}
+
+    def robot_checks(self, robot: str, description) -> Iterator[Finding]:
+        """On a robot the handover fits: the left hand holds the bar by one end for the right to take it
+        (:func:`holds_bar`)."""
+        if not self.fits(description):
+            return
+        from besman.sim.world import tabletop_world
+
+        with_bar = tabletop_world((BAR,), robot=robot)
+        yield holds_bar(with_bar, "left", self.numbers(robot).grip, str(description.file))
+
+
+def holds_bar(world: World, name: str, grip: float, field: str) -> Finding:
+    """The bar closed on by arm ``name``'s hand :attr:`HandoverNumbers.grip` from its middle, then its
+    weight on: after :data:`~besman.tasks.robot_check.HOLD_SETTLE` s to settle in the grip (a hand may hold
+    it at a slant), it must not turn on by more than :data:`BAR_TURN` in
+    :data:`~besman.tasks.robot_check.HOLD_TIME` s (a grip whose contacts let it creep drops its far end as
+    the arm moves, and the other hand comes down beside it)."""
+    from besman.tasks.robot_check import HOLD_SETTLE, HOLD_TIME, Finding, closed_on, settled_then_held
+
+    closed_on(world, name, BAR, along=grip)
+
+    def tilt() -> float:
+        length = world.object_pose(BAR.name).rotation[:, 1]
+        return float(np.degrees(np.arcsin(np.clip(length[2], -1.0, 1.0))))
+
+    settled, held = settled_then_held(world, tilt)
+    turned = abs(held - settled)
+    return Finding(
+        name,
+        "holds the handover's bar by one end",
+        turned <= BAR_TURN,
+        f"the {2 * BAR.size[1] * 100:.0f} cm bar held {grip * 100:.0f} cm from its middle, after "
+        f"{HOLD_SETTLE:g} s to settle: it turned {turned:.1f} deg in {HOLD_TIME:g} s (at most {BAR_TURN:g})",
+        f"MuJoCo's no-slip solver ({field}: options.noslip_iterations, e.g. 10), or the hands nearer the "
+        "bar's middle (tasks.handover.grip)",
+    )
 
 
 TASKS = (Handover(),)

@@ -4,8 +4,9 @@
 verdict, what it measured and what to change: what a user bringing an arm would otherwise find one failed
 demo at a time. Then each task of the registry checks what it needs of the robot itself
 (:meth:`~besman.tasks.base.Task.robot_checks`, with :class:`Finding` and the helpers here): pick and
-place the home, the reach of its areas and one run (:mod:`besman.tasks.pick_place.robot_checks`), the
-handover the bar held by one end (:meth:`~besman.tasks.handover.Handover.robot_checks`).
+place checks the first arm's home, its reach of the task's areas and one run
+(:mod:`besman.tasks.pick_place.robot_checks`), the handover the bar held by one end
+(:meth:`~besman.tasks.handover.Handover.robot_checks`).
 
 - **tool frame**: its y axis runs along the fingers' closing, and it sits between the fingertips: the
   planner grasps 1 cm above an object's centre, so the fingertips must not reach the table under the task's
@@ -24,7 +25,7 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from functools import partial
 
 import mujoco
@@ -37,14 +38,12 @@ from besman.robots.servos import force_limit, growth_per_step, joint_inertia, se
 from besman.sim.arm import Arm
 from besman.sim.executor import Executor, ExecutorConfig
 from besman.sim.hand import Hand
-from besman.sim.manipulation import DEFAULT_PLAN, FINGER_DEPTH, heights
+from besman.sim.manipulation import DEFAULT_PLAN, FINGER_DEPTH
 from besman.sim.motions import MoveTo
-from besman.sim.primitives import top_down
+from besman.sim.objects import GraspableObject
 from besman.sim.world import World, tabletop_world
-from besman.tasks.handover import BAR
+from besman.tasks.base import Finding
 
-REACH_YAWS = np.radians([0.0, 90.0, 45.0, -45.0])  # hand yaws a reach is tried at (a cube's grasps)
-HOME_TILT = 10.0  # deg the home's tool z axis may lean from straight down
 CLOSING_TILT = 15.0  # deg the line between the pads may lean from the tool frame's y axis
 OPENING_SLACK = 0.002  # m the measured opening may differ from the table's at ``open``
 # m the hand may reach past its pads along the tool frame's z axis: farther, the axis points into the hand.
@@ -57,33 +56,19 @@ HOLD_SETTLE, HOLD_TIME, HOLD_SLIDE = 1.0, 1.0, 0.001
 # Of the executor's following tolerance that a joint may lag at its limits, in the check's move or steadily
 # at its velocity limit: AILA's shoulders steadily lag 0.116 rad at 1.5 rad/s (0.77 of 0.15) in every demo.
 LAG_SHARE = 0.8
-# deg the handover's bar held by one end may turn on in the grip in HOLD_TIME, settled (the two WidowX AI
-# without the no-slip solver: 2.8; AILA, the OpenArm, the WidowX AI with it: 0.1 at most).
-BAR_TURN = 1.0
-
-
-@dataclass(frozen=True)
-class Finding:
-    """One check of one arm: whether it passed, what it measured, and what to change if it did not."""
-
-    arm: str
-    check: str
-    passed: bool
-    measured: str
-    fix: str = ""
 
 
 def check_robot(robot: str) -> Iterator[Finding]:
-    """The checks of the module documentation on ``robot`` (a name or a folder), one finding at a time."""
-    from besman.tasks import task
-    from besman.tasks.pick_place import DEFAULT_OBJECT, areas, family, the_object
+    """The checks of the module documentation on ``robot`` (a name or a folder), one finding at a time; then
+    each task's own (:meth:`~besman.tasks.base.Task.robot_checks`), every task of the registry once."""
+    from besman.tasks import TASKS
+    from besman.tasks.pick_place.scene import family
 
     description = describe(robot)
-    first = next(iter(description.arms), None)
     yield _sections(description)
     if description.tabletop is None:
         yield Finding(
-            first or "-",
+            next(iter(description.arms), "-"),
             "the tabletop",
             False,
             "the description has no tabletop (the table, the shelf and the area the arm reaches): the checks "
@@ -91,33 +76,14 @@ def check_robot(robot: str) -> Iterator[Finding]:
             f"add tabletop to {description.file} (besman.robots.description lists its fields)",
         )
         return
-    task_areas = areas(robot)  # (object area, place area), or None
-    if task_areas is None:
-        yield Finding(
-            first or "-",
-            "the task's areas",
-            False,
-            "the description gives no place area for pick-place: the reach and pick-place checks are skipped",
-            f"add tasks.pick-place.places (x and y ranges on the shelf) to {description.file}",
-        )
-        widths = family(robot).width  # the 6 cm box, as narrow as the gripper needs
-        size = [min(DEFAULT_OBJECT["size"][0], widths[1])] * 2 + [DEFAULT_OBJECT["size"][2]]
-        values = {"shape": np.array([0.0]), "size": np.array(size)}
-    else:
-        values = task("pick-place").default_values(robot)
-    item = the_object(robot, values, None)
+    item = checked_object(robot)
     heaviest = family(robot).mass[1]
     world = tabletop_world((item,), robot=robot)
     for name, spec in description.arms.items():
         field = f"{description.file}: arms.{name}"
         if spec.gripper is None:
             continue
-        checks = []
-        if name == first and task_areas is not None:  # the arm that works alone, on the task's areas
-            reach, places = task_areas
-            grasp_z, _, place_z = heights(world, item, DEFAULT_PLAN)
-            checks.append(partial(_home, world, name, field, [*np.mean(reach, axis=1), grasp_z]))
-        checks += [
+        checks = [
             partial(_integrator, world, name, description.file),
             partial(_closing, world, name, field),
             partial(_fingertips, world, name, field, item),
@@ -127,21 +93,21 @@ def check_robot(robot: str) -> Iterator[Finding]:
             partial(_keeps_hold, world, name, replace(item, mass=heaviest)),
             partial(_limits, world, name, description.file),
         ]
-        if name == first and task_areas is not None:
-            checks += [
-                partial(
-                    _reach, world, name, "object area", reach, grasp_z, f"{description.file}: tabletop.reach"
-                ),
-                partial(_reach, world, name, "place area", places, place_z, "the task's places"),
-                partial(_pick_place, world, values),
-            ]
         for check in checks:
             world.reset()
             yield check()
-    handover = task("handover")
-    if handover.fits(description):  # the left hand holds the bar by one end for the right to take it
-        with_bar = tabletop_world((BAR,), robot=robot)
-        yield _holds_bar(with_bar, "left", handover.numbers(robot).grip, str(description.file))
+    for entry in TASKS.values():  # by name: an alias is not a key, a subclass is a task of its own
+        yield from entry.robot_checks(robot, description)
+
+
+def checked_object(robot: str) -> GraspableObject:
+    """The object the checks grasp: pick and place's 6 cm box, as narrow as ``robot``'s first gripper
+    needs (the object of its run without a seed), its mass and friction the family's middles."""
+    from besman.tasks.pick_place.scene import DEFAULT_OBJECT, family, the_object
+
+    widths = family(robot).width
+    size = [min(DEFAULT_OBJECT["size"][0], widths[1])] * 2 + [DEFAULT_OBJECT["size"][2]]
+    return the_object(robot, {"shape": np.array([0.0]), "size": np.array(size)}, None)
 
 
 def _sections(description) -> Finding:
@@ -162,27 +128,6 @@ def _sections(description) -> Finding:
         False,
         f"no task reads tasks.{unread[0]}" + (f" (did you mean {near[0]}?)" if near else ""),
         f"rename or remove it in {description.file}; the sections tasks read: {read}",
-    )
-
-
-def _home(world: World, name: str, field: str, middle) -> Finding:
-    """The home's hand pointing down, or turned down from there by inverse kinematics without restarts at
-    ``middle`` (the planner solves its first pose from home)."""
-    arm = Arm(world, name)
-    down = arm.site_pose(arm.home).rotation[:, 2]
-    tilt = float(np.degrees(np.arccos(np.clip(-down[2], -1.0, 1.0))))
-    turned = tilt <= HOME_TILT or arm.solve_ik(middle, top_down(0.0), initial=arm.home).success
-    measured = f"the tool frame's z axis is {tilt:.0f} deg from straight down"
-    if tilt > HOME_TILT:
-        reached = "reaches" if turned else "does not reach"
-        measured += f"; inverse kinematics from there {reached} the object area's middle hand down"
-    return Finding(
-        name,
-        "home points the hand down",
-        turned,
-        measured,
-        f"a home keyframe with the hand pointing down (the model's, or the description's home); if the hand "
-        f"does point down there, turn the tool frame so that its z axis points out of the hand ({field}.tcp)",
     )
 
 
@@ -337,7 +282,7 @@ def _opening(world: World, name: str, field: str) -> Finding:
     )
 
 
-def _closed_on(world: World, name: str, item, along: float = 0.0) -> None:
+def closed_on(world: World, name: str, item, along: float = 0.0) -> None:
     """The object floated (no gravity) between the open pads at the tool frame, shifted ``along`` its
     length (m: a bar held by one end), the fingers closed on it."""
     gripper = world.robot.arm(name).gripper
@@ -360,7 +305,7 @@ def _closed_on(world: World, name: str, item, along: float = 0.0) -> None:
 
 
 def _holds(world: World, name: str, item) -> Finding:
-    _closed_on(world, name, item)
+    closed_on(world, name, item)
     touching = Hand(world, world.robot.arm(name)).touching(item.name)
     sides = [side for side, touches in zip(("first", "second"), touching, strict=True) if not touches]
     return Finding(
@@ -381,8 +326,8 @@ def _keeps_hold(world: World, name: str, item) -> Finding:
     saved = model.body_mass[body], model.body_inertia[body].copy()
     model.body_mass[body], model.body_inertia[body] = item.mass, item.inertia  # the family's heaviest
     try:
-        _closed_on(world, name, item)
-        heights = _settled_then_held(world, lambda: world.object_pose(item.name).position[2])
+        closed_on(world, name, item)
+        heights = settled_then_held(world, lambda: world.object_pose(item.name).position[2])
     finally:
         model.body_mass[body], model.body_inertia[body] = saved
     slid = max(float(heights[0] - heights[1]), 0.0)  # risen a hair in the grip: not slid
@@ -397,7 +342,7 @@ def _keeps_hold(world: World, name: str, item) -> Finding:
     )
 
 
-def _settled_then_held(world: World, measure) -> tuple[float, float]:
+def settled_then_held(world: World, measure) -> tuple[float, float]:
     """``measure()`` after :data:`HOLD_SETTLE` s of simulation, and again :data:`HOLD_TIME` s later."""
     measured = []
     for seconds in (HOLD_SETTLE, HOLD_TIME):
@@ -405,30 +350,6 @@ def _settled_then_held(world: World, measure) -> tuple[float, float]:
             mujoco.mj_step(world.model, world.data)
         measured.append(measure())
     return measured[0], measured[1]
-
-
-def _holds_bar(world: World, name: str, grip: float, field: str) -> Finding:
-    """The handover's bar closed on :attr:`~besman.tasks.handover.HandoverNumbers.grip` from its middle,
-    then its weight on: after :data:`HOLD_SETTLE` s to settle in the grip (a hand may hold it at a slant),
-    it must not turn on by more than :data:`BAR_TURN` in :data:`HOLD_TIME` s (a grip whose contacts let it
-    creep drops its far end as the arm moves, and the other hand comes down beside it)."""
-    _closed_on(world, name, BAR, along=grip)
-
-    def tilt() -> float:
-        length = world.object_pose(BAR.name).rotation[:, 1]
-        return float(np.degrees(np.arcsin(np.clip(length[2], -1.0, 1.0))))
-
-    settled, held = _settled_then_held(world, tilt)
-    turned = abs(held - settled)
-    return Finding(
-        name,
-        "holds the handover's bar by one end",
-        turned <= BAR_TURN,
-        f"the {2 * BAR.size[1] * 100:.0f} cm bar held {grip * 100:.0f} cm from its middle, after "
-        f"{HOLD_SETTLE:g} s to settle: it turned {turned:.1f} deg in {HOLD_TIME:g} s (at most {BAR_TURN:g})",
-        f"MuJoCo's no-slip solver ({field}: options.noslip_iterations, e.g. 10), or the hands nearer the "
-        "bar's middle (tasks.handover.grip)",
-    )
 
 
 def _integrator(world: World, name: str, file) -> Finding:
@@ -470,26 +391,6 @@ def _integrator(world: World, name: str, file) -> Finding:
         "explicitly: damping x timestep / inertia above 2 diverges), or a smaller options.timestep"
     )
     return Finding(name, "the integrator keeps the joints stable", stable, measured, fix)
-
-
-def _reach(world: World, name: str, area: str, bounds, z: float, field: str) -> Finding:
-    arm = Arm(world, name)
-    (x0, x1), (y0, y1) = bounds
-    points = [(x0, y0), (x0, y1), (x1, y0), (x1, y1), ((x0 + x1) / 2, (y0 + y1) / 2)]
-    missed = []
-    for x, y in points:
-        solved = [arm.solve_ik([x, y, z], top_down(yaw), initial=arm.home, restarts=4) for yaw in REACH_YAWS]
-        if not any(result.success for result in solved):
-            best = min(solved, key=lambda result: result.position_error)
-            missed.append(f"({x:.2f}, {y:.2f}) by {best.position_error * 1000:.0f} mm")
-    return Finding(
-        name,
-        f"reaches the {area} top-down",
-        not missed,
-        f"{len(points) - len(missed)} of its 5 corners and middle at z {z:.3f} m"
-        + (f"; missed {', '.join(missed)}" if missed else ""),
-        f"shrink the area to what the arm reaches ({field}) or move the robot (mount)",
-    )
 
 
 def _limits(world: World, name: str, file) -> Finding:
@@ -586,18 +487,3 @@ def _lag_cause(world: World, joint: str, lag: float, speed: float, file) -> tupl
     if not fastest > 0:
         return asks, f"{change}: no velocity limit is slow enough"
     return asks, f"{change}, or a velocity limit of at most {_below(fastest):.2f} ({field})"
-
-
-def _pick_place(world: World, values: dict) -> Finding:
-    from besman.tasks.pick_place.episode import run_episode
-
-    detail = run_episode(world, values, DEFAULT_PLAN)
-    at, to = (np.round(values[key][:2], 3).tolist() for key in ("object", "place"))
-    placed = "" if detail.placement_error is None else f": placed {detail.placement_error * 100:.1f} cm off"
-    return Finding(
-        world.robot.arm().name,
-        "picks and places at the areas' middles",
-        bool(detail.success),
-        f"object at {at}, place {to}{placed}" + ("" if detail.success else f"; failed at {detail.message}"),
-        "what the failed step's message says (the checks above find most causes one by one)",
-    )

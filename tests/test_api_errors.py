@@ -14,6 +14,7 @@ import besman.learning as learning
 import besman.robots as robots
 import besman.sim as sim
 import besman.skills as skills
+import besman.tasks.throwing.rollouts as throwing
 import besman.trees as trees
 from besman.core.errors import ArgumentTypeError, BesmanError, InputError, UnknownNameError
 from besman.tasks.pick_place.episode import PickPlaceRollouts
@@ -67,7 +68,7 @@ CASES = [
     ("DMPSettings(n_weight=5)", lambda m: skills.DMPSettings(n_weight=5), ["DMPSettings", "'n_weights'"]),
     (
         "ThrowingRollouts(durration=1)",
-        lambda m: sim.ThrowingRollouts(durration=1.0),
+        lambda m: throwing.ThrowingRollouts(durration=1.0),
         ["'durration'", "'duration'"],
     ),
     (
@@ -107,7 +108,7 @@ CASES = [
     ("Executor.advance(-1)", lambda m: sim.Executor(m["world"]).advance(-1), ["advance", "cycles", "-1"]),
     ("World.place_on(x='a')", lambda m: m["world"].place_on("box", "table", "a", 0.0), ["x", "'a' (str)"]),
     ("Arm.site_pose(shape)", lambda m: m["arm"].site_pose(np.zeros(2)), ["joint_positions", "(2,)"]),
-    ("ThrowingConfig(n_weights='a')", lambda m: sim.ThrowingConfig(n_weights="a"), ["n_weights", "'a'"]),
+    ("ThrowingConfig(n_weights='a')", lambda m: throwing.ThrowingConfig(n_weights="a"), ["n_weights", "'a'"]),
     (
         "PickPlaceRollouts('x')",
         lambda m: PickPlaceRollouts("x"),

@@ -12,6 +12,7 @@ run in the browser viewer. A file names Python templates and pools only as regis
 (:mod:`besman.trees.registry`).
 """
 
+from besman.core.moved import old_names
 from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
 from besman.trees.files import TreeFileError, check_tree, describe, dump_tree, load_tree, loads_tree
 from besman.trees.guards import KeepApart
@@ -61,3 +62,5 @@ __all__ = [
     "register_template",
     "return_home",
 ]
+
+__getattr__ = old_names(__name__)  # the old names, for one release (besman.core.moved)

@@ -159,6 +159,16 @@ class PickPlace(Task):
 
         return building_blocks(self, robot)
 
+    def robot_checks(self, robot: str, description):
+        """Its place area given, the first arm's home, its reach of the areas and one pick and place at
+        their middles (:mod:`besman.tasks.pick_place.robot_checks`); pick and place, its halves, leave
+        them to it."""
+        if type(self) is not PickPlace:
+            return
+        from besman.tasks.pick_place.robot_checks import robot_checks
+
+        yield from robot_checks(self, robot, description)
+
     def facts(self, robot: str) -> dict:
         objects, places = areas(robot)
         held = family(robot)

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from besman.core.moved import renamed
+from besman.core.moved import old_names
 from besman.learning.pipeline.building_blocks import BuildingBlocks
 from besman.sim.block_simulation import (
     BLOCKS,
@@ -146,4 +146,4 @@ def building_blocks(task, robot: str) -> BuildingBlocks:
     )
 
 
-__getattr__ = renamed(__name__, {"BlockTask": "BlockRollouts"})  # the old name, for one release
+__getattr__ = old_names(__name__)  # the old names, for one release (besman.core.moved)

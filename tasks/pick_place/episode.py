@@ -18,7 +18,7 @@ from dataclasses import dataclass, fields
 import mujoco
 import numpy as np
 
-from besman.core.moved import renamed
+from besman.core.moved import old_names
 from besman.core.validation import checked, instance
 from besman.robots.catalogue import ROBOT
 from besman.sim.block_simulation import OBJECT, step_motion
@@ -196,4 +196,4 @@ def _failure(world: World, step: str, message: str, monitor: _BoxMonitor | None 
     )
 
 
-__getattr__ = renamed(__name__, {"PickPlaceTask": "PickPlaceRollouts"})  # the old name, for one release
+__getattr__ = old_names(__name__)  # the old names, for one release (besman.core.moved)

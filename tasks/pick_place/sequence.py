@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from besman.core.moved import renamed
+from besman.core.moved import old_names
 from besman.learning.pipeline.refinement import forcing_weights
 from besman.sim.block_simulation import BLOCKS, OBJECT, BlockOutcome, Reward, motion_measures, step_motion
 from besman.sim.evaluation import BatchedRollouts, Evaluation
@@ -318,4 +318,4 @@ def _set_properties(world: World, name: str, mass: float, friction: float) -> No
     model.geom_friction[model.body_geomadr[body], 0] = friction
 
 
-__getattr__ = renamed(__name__, {"SequenceTask": "SequenceRollouts"})  # the old name, for one release
+__getattr__ = old_names(__name__)  # the old names, for one release (besman.core.moved)

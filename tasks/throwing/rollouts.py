@@ -41,7 +41,7 @@ import numpy as np
 from mujoco import rollout
 
 from besman.core.errors import InputError
-from besman.core.moved import renamed
+from besman.core.moved import old_names
 from besman.core.validation import (
     checked,
     finite_array,
@@ -435,4 +435,4 @@ class ThrowingRollouts(BatchedRollouts):
             self._pool = None
 
 
-__getattr__ = renamed(__name__, {"ThrowingTask": "ThrowingRollouts"})  # the old name, for one release
+__getattr__ = old_names(__name__)  # the old names, for one release (besman.core.moved)
