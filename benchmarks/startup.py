@@ -73,7 +73,7 @@ def listings(dataset: str) -> list[list[str]]:
         ["tree", "schema"],
         ["pool", "ls", pool],
         ["pool", "show", pool, "reach"],
-        ["demos", "show", "examples/data/subject1_run1.tsv"],
+        ["recordings", "show", "examples/data/subject1_run1.tsv"],
         ["examples"],
         ["dataset", "show", dataset],
     ]

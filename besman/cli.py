@@ -47,7 +47,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # Offscreen rendering without a screen: EGL unless the user chose otherwise (before `import mujoco`).
         os.environ.setdefault("MUJOCO_GL", "egl")
         parser = build_parser()
-        args = parser.parse_args(argv)
+        args = parser.parse_args(respelled(sys.argv[1:] if argv is None else list(argv)))
         if not hasattr(args, "handler"):
             parser.print_help(sys.stderr)
             return 2
@@ -64,6 +64,32 @@ def main(argv: Sequence[str] | None = None) -> int:
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)
         return 2
+
+
+# Spellings of the previous release that keep working for this one, with a warning: (command, old) -> new;
+# the command "" is the first word itself.
+OLD_SPELLINGS = {("", "demos"): "recordings", ("learn", "--tasks"): "--training-tasks"}
+
+
+def respelled(argv: list[str]) -> list[str]:
+    """``argv`` with the previous release's spellings (:data:`OLD_SPELLINGS`) in this one's, each warned of in
+    one line."""
+    argv = list(argv)
+    command = next((i for i, word in enumerate(argv) if not word.startswith("-")), None)
+    if command is None:
+        return argv
+    for index, word in enumerate(argv):
+        name, equals, value = word.partition("=")
+        key = ("", name) if index == command else (argv[command], name)
+        if key in OLD_SPELLINGS and (index == command or (index > command and name.startswith("--"))):
+            new = OLD_SPELLINGS[key]
+            said = f"besman {name}" if index == command else f"besman {argv[command]} {name}"
+            print(
+                f"besman: warning: {said} is now {new} (the old spelling goes in the next release)",
+                file=sys.stderr,
+            )
+            argv[index] = new + equals + value
+    return argv
 
 
 def _one_line(show):

@@ -34,11 +34,9 @@ MOVED = {
     "besman.learning.preprocessing": "besman.learning.segmentation.preprocessing",
     "besman.learning.contact": "besman.learning.segmentation.contact",
     "besman.learning.changepoints": "besman.learning.segmentation.changepoints",
-    "besman.learning.segmentation": "besman.learning.segmentation.segmenter",
     "besman.learning.segmentation_plot": "besman.learning.segmentation.plot",
     "besman.learning.boundaries": "besman.learning.segmentation.boundaries",
     "besman.learning.labelling": "besman.learning.segmentation.labelling",
-    "besman.learning.pipeline": "besman.learning.pipeline.learn",
     "besman.learning.pipeline_labels": "besman.learning.pipeline.labels",
     "besman.learning.pipeline_plots": "besman.learning.pipeline.plots",
     "besman.learning.pipeline_record": "besman.learning.pipeline.record",
@@ -78,8 +76,11 @@ MOVED = {
     "besman.learning.promp_baseline": "besman.tasks.pick_place.promp_baseline",
 }
 
-# Names that left a module or were renamed: module -> {old name: "new module:new name"}.
+# Names that left a module or were renamed: module -> {old name: "new module:new name"}; "*" for every name
+# of a module that became a package of the same name.
 MOVED_NAMES = {
+    "besman.learning.pipeline": {"*": "besman.learning.pipeline.end_to_end"},
+    "besman.learning.segmentation": {"*": "besman.learning.segmentation.segmenter"},
     "besman.sim": {
         "ThrowingConfig": "besman.tasks.throwing.rollouts:ThrowingConfig",
         "ThrowingTask": "besman.tasks.throwing.rollouts:ThrowingRollouts",
@@ -130,9 +131,12 @@ def old_names(module: str):
     names = MOVED_NAMES[module]
 
     def __getattr__(name: str):
-        if name not in names:
+        if name in names:
+            home, new = names[name].split(":")
+        elif "*" in names and not name.startswith("_") and hasattr(importlib.import_module(names["*"]), name):
+            home, new = names["*"], name
+        else:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        home, new = names[name].split(":")
         warnings.warn(f"{module}.{name} is now {home}.{new}", DeprecationWarning, stacklevel=2)
         return getattr(importlib.import_module(home), new)
 

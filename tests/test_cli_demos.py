@@ -1,4 +1,4 @@
-"""The command line for recordings: `besman demos show` and `besman segment`."""
+"""The command line for recordings: `besman recordings show` and `besman segment`."""
 
 import json
 
@@ -33,11 +33,11 @@ def recording(tmp_path, seed=0, rate=60.0, gap=None, name="reach", reach=(0.3, -
 
 def test_demos_show_summarises_a_recording(capsys, tmp_path):
     file = recording(tmp_path, gap=(70, 75))
-    code, out, _ = run_cli(capsys, "demos", "show", str(file), "--json")
+    code, out, _ = run_cli(capsys, "recordings", "show", str(file), "--json")
     summary = json.loads(out)
     assert code == 0 and summary["samples"] == 180 and summary["rate_hz"] == pytest.approx(60.0, rel=1e-3)
     assert summary["frames"] == [500, 679] and summary["markers"]["Hand top"]["gaps"] == [[570, 574]]
-    code, out, _ = run_cli(capsys, "demos", "show", str(file))
+    code, out, _ = run_cli(capsys, "recordings", "show", str(file))
     assert code == 0 and "Hand top: 1 gaps, 5 frames missing (570-574)" in out
 
 

@@ -448,7 +448,7 @@ def test_two_runs_cannot_write_the_same_log(tmp_path):
 def test_the_readme_recording_examples_run_from_the_shipped_recordings(tmp_path, capsys):
     data = Path(__file__).resolve().parents[1] / "examples" / "data"
     assert (data / "LICENSE").read_text().startswith("Copyright 2018-2022 Lisa Gutzeit")
-    assert run_cli(capsys, "demos", "show", str(data / "subject1_run1.tsv"))[0] == 0
+    assert run_cli(capsys, "recordings", "show", str(data / "subject1_run1.tsv"))[0] == 0
     code, out, _ = run_cli(
         capsys,
         "segment",
@@ -469,9 +469,9 @@ def test_unreadable_files_and_impossible_requests_get_one_clear_line(tmp_path, c
     noise = np.random.default_rng(0).bytes(3000)
     (tmp_path / "noise.npz").write_bytes(noise)
     (tmp_path / "noise.csv").write_bytes(noise)
-    code, _, err = run_cli(capsys, "demos", "show", str(tmp_path / "noise.npz"))
+    code, _, err = run_cli(capsys, "recordings", "show", str(tmp_path / "noise.npz"))
     assert code == 2 and "never does" in err and "allow_pickle" not in err
-    code, _, err = run_cli(capsys, "demos", "show", str(tmp_path / "noise.csv"))
+    code, _, err = run_cli(capsys, "recordings", "show", str(tmp_path / "noise.csv"))
     assert code == 2 and err.isascii() and "a binary file" in err
     lines = (data / "subject1_run1.tsv").read_text().splitlines()
     header = next(i for i, line in enumerate(lines) if line.startswith("Frame\t"))
@@ -606,7 +606,17 @@ def test_ctrl_c_at_any_moment_prints_one_line_and_leaves_only_whole_files(
                 "--log",
                 f"{out}.jsonl",
             ],
-            "learn": ["learn", "--demos", str(demos), "--out", str(out), "--tasks", "2", "--budget", "4"],
+            "learn": [
+                "learn",
+                "--demos",
+                str(demos),
+                "--out",
+                str(out),
+                "--training-tasks",
+                "2",
+                "--budget",
+                "4",
+            ],
         }[command]
         process = subprocess.Popen(
             [str(script), *argv],

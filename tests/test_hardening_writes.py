@@ -57,7 +57,7 @@ def _stop(*args, **kwargs):
     [
         (
             ("learn", "--demos", str(DEMOS), "--out", "{out}"),
-            "besman.learning.pipeline.learn._Run.segmentations",
+            "besman.learning.pipeline.end_to_end._Run.segmentations",
         ),
         (
             ("experiment", "throwing", "--quick", "--out", "{out}"),
@@ -225,7 +225,7 @@ def test_sigterm_during_a_logged_run_ends_it_as_ctrl_c_does(tmp_path):
 def test_sigterm_during_learn_ends_it_as_ctrl_c_does(tmp_path):
     """Exit 143, the last line says so, every file whole, no temporary and no lock."""
     out = tmp_path / "pool"
-    argv = ["learn", "--demos", str(DEMOS), "--out", str(out), "--tasks", "2", "--budget", "4"]
+    argv = ["learn", "--demos", str(DEMOS), "--out", str(out), "--training-tasks", "2", "--budget", "4"]
     code, err = _terminate_when(argv, out / "work" / "learn.json", 1.0)
     assert code == 143 and "Traceback" not in err, err
     assert err.count("besman:") == 1, err

@@ -34,7 +34,7 @@ def record(root: Path, episodes: int, *more: str) -> Path:
 def learn_command(demos: Path, pool: Path) -> list[str]:
     """``besman learn`` from ``demos`` into ``pool`` with a small budget (2 training tasks, 8 rollouts)."""
     command = [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(pool)]
-    return [*command, "--tasks", "2", "--budget", "8"]
+    return [*command, "--training-tasks", "2", "--budget", "8"]
 
 
 @pytest.fixture(scope="module")

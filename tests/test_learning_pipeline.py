@@ -38,8 +38,8 @@ from helpers import (
 
 from besman.cli import main
 from besman.core.writer_lock import WriterLock
+from besman.learning.pipeline.end_to_end import LearnError, LearnSettings, learn
 from besman.learning.pipeline.labels import longest_run
-from besman.learning.pipeline.learn import LearnError, LearnSettings, learn
 from besman.learning.pipeline.retargeting import WorkspaceMap, fit_workspace_map, retarget
 from besman.learning.search.online import MAX_ROLLOUTS, refine_online, uncertainty
 from besman.learning.segmentation.labelling import DemonstrationSegment
@@ -59,7 +59,7 @@ COMMITTED_POOL = ROOT / "examples" / "pools" / "pick_place_aila"
 LEARNED_TREE = ROOT / "examples" / "trees" / "grasp_then_place_learned.yaml"
 # The robot named by its folder, as a user's own robot is: the templates must name the robot, not the path
 # (a run on the robot by name refused a pool learned on './my_arm').
-SMALL = ("--tasks", "2", "--budget", "8", "--robot", str(ROBOTS_DIR / "aila"))
+SMALL = ("--training-tasks", "2", "--budget", "8", "--robot", str(ROBOTS_DIR / "aila"))
 PICK_PLACE = task("pick-place")
 BLOCKS = PICK_PLACE.building_blocks("aila")  # what `besman learn` learns by default
 # Pick-and-place tasks over the task's box that no pool here was trained on (object x, y, yaw, place x, y,
@@ -196,7 +196,7 @@ def test_force_over_a_pool_of_other_settings_removes_only_its_stage_caches(small
     cache = out / "work" / "refined" / "reach-0.json"
     cache.write_text(json.dumps({**json.loads(cache.read_text()), "reward": 123.0}))
     demos = small_pool.parent / "demos"
-    _learn(demos, out, "--tasks", "2", "--budget", "9", "--force")
+    _learn(demos, out, "--training-tasks", "2", "--budget", "9", "--force")
     assert (out / "work" / "thesis.tex").read_text() == "precious"
     assert (out / "notes.txt").read_text() == "keep"
     assert json.loads((out / "work" / "learn.json").read_text())["settings"]["budget"] == 9
@@ -224,7 +224,7 @@ def test_a_pool_for_another_task_or_robot_or_other_settings_is_refused_and_kept(
 
 def _claimed(two_recordings, out, monkeypatch, **options) -> dict:
     """A learn into ``out`` stopped once it has claimed the output: its record."""
-    monkeypatch.setattr("besman.learning.pipeline.learn._Run.segmentations", _stop)
+    monkeypatch.setattr("besman.learning.pipeline.end_to_end._Run.segmentations", _stop)
     with pytest.raises(KeyboardInterrupt):
         learn(two_recordings, out, blocks=BLOCKS, progress=False, **options)
     return json.loads((out / "work" / "learn.json").read_text())

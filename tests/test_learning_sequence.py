@@ -26,7 +26,9 @@ def test_a_learn_that_refines_the_sequence_writes_its_subgoals_into_the_tree(sha
     demos.mkdir()
     for name in ("subject1_run1.tsv", "subject2_run1.tsv"):
         shutil.copy(shared_recordings / name, demos / name)
-    out = _learn(demos, tmp_path / "pool", "--tasks", "2", "--budget", "8", "--refinement", "sequence")
+    out = _learn(
+        demos, tmp_path / "pool", "--training-tasks", "2", "--budget", "8", "--refinement", "sequence"
+    )
     record = json.loads((out / "work" / "learn.json").read_text())
     assert record["settings"]["refinement"] == "sequence"
     documents = [json.loads((out / "work" / "refined" / f"sequence-{k}.json").read_text()) for k in (0, 1)]

@@ -117,7 +117,9 @@ def test_learn_on_ray_listens_on_this_machine_only(tmp_path):
     """While ``learn --backend ray`` runs, no process of it (the learn, Ray's GCS, raylet and object manager,
     dashboard and agents, workers) listens anywhere but on 127.0.0.0/8 or ::1."""
     pytest.importorskip("ray")
-    argv = f"learn --demos {DEMOS} --out {tmp_path / 'pool'} --tasks 2 --budget 8 --backend ray".split()
+    argv = (
+        f"learn --demos {DEMOS} --out {tmp_path / 'pool'} --training-tasks 2 --budget 8 --backend ray".split()
+    )
     token, err = uuid.uuid4().hex, tmp_path / "stderr.txt"
     with err.open("w") as stderr:
         process = subprocess.Popen(

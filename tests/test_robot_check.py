@@ -3,11 +3,14 @@ changed where a user's description goes wrong (or an inline model), its line nam
 what to change (every check passes on the WidowX as brought: tests/test_widowx.py)."""
 
 import json
+import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
-from helpers import PINCER, pincer, run_cli
+from helpers import PINCER, install_plugin, pincer, run_cli
 
 from besman.robots.catalogue import ROBOTS_DIR
 from besman.tasks.robot_check import check_robot
@@ -126,8 +129,7 @@ def test_a_bar_that_turns_in_the_grip_without_the_no_slip_solver_is_named(tmp_pa
     """The two WidowX AI hold the handover's bar 10 cm from its middle: without MuJoCo's no-slip solver it
     keeps turning in the grip (2.8 deg/s, measured), with it it does not; the line says what to set."""
     from besman.sim.world import tabletop_world
-    from besman.tasks.handover import BAR
-    from besman.tasks.robot_check import BAR_TURN, _holds_bar
+    from besman.tasks.handover import BAR, BAR_TURN, holds_bar
 
     folder = tmp_path / "pair"
     shutil.copytree(PAIR, folder)
@@ -135,7 +137,7 @@ def test_a_bar_that_turns_in_the_grip_without_the_no_slip_solver_is_named(tmp_pa
     del raw["options"]["noslip_iterations"]
     (folder / "description.json").write_text(json.dumps(raw))
     for robot, holds in ((str(PAIR), True), ("aila", True), (str(folder), False)):
-        found = _holds_bar(tabletop_world((BAR,), robot=robot), "left", 0.1, "FILE")
+        found = holds_bar(tabletop_world((BAR,), robot=robot), "left", 0.1, "FILE")
         assert found.passed is holds, (robot, found.measured)
     assert found.check == "holds the handover's bar by one end"
     turned = float(found.measured.split("turned ")[1].split(" deg")[0])
@@ -169,3 +171,48 @@ def test_a_task_section_no_task_reads_is_reported(tmp_path, section, told):
         f"rename or remove it in {robot}/description.json; the sections tasks read: "
     )
     assert "stack (spot and starts: " in finding.fix and "pick-place (places: " in finding.fix
+
+
+# A task plugin (docs/tasks.md) that declares a check of its own: the spot it wipes, on the pincer only.
+WIPE = """
+from besman.tasks.base import Task
+from besman.tasks.robot_check import Finding
+
+
+class Wipe(Task):
+    name, title, randomised, success, robot = "wipe", "wipe the table", "nothing", "always", "aila"
+
+    def fits(self, robot):
+        return robot.name == "pincer"
+
+    def robot_checks(self, robot, description):
+        if self.fits(description):
+            yield Finding("arm", "reaches the wiping spot", False, f"{description.name}: 2 cm short", "spot")
+
+
+TASKS = (Wipe(),)
+"""
+
+
+def test_an_installed_tasks_own_check_is_run_after_the_arms_and_each_task_once(tmp_path):
+    """``besman robots check`` runs the checks a plugin task declares (Task.robot_checks) after the arm and
+    gripper checks; pick-place's own run once, though pick and place inherit them."""
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "besman_wipe.py").write_text(WIPE)
+    install_plugin(site, "besman-wipe", "besman.tasks", "besman_wipe")
+    robot = pincer(tmp_path, [[0.0, 0.04], [0.0, 0.04]])
+    path = os.pathsep.join(filter(None, [str(site), os.environ.get("PYTHONPATH")]))
+    result = subprocess.run(
+        [sys.executable, "-m", "besman", "robots", "check", robot],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": path},
+    )
+    lines = result.stdout.splitlines()
+    assert result.returncode == 1 and result.stderr == "", result.stderr
+    assert lines[-1] == "3 check(s) failed"  # the pincer's grip slides; no place area; the plugin's spot
+    wipe = lines.index("FAIL arm: reaches the wiping spot: pincer: 2 cm short")
+    assert lines[wipe + 1] == "     to change: spot"
+    assert wipe > next(i for i, line in enumerate(lines) if "joints follow their limits" in line)
+    assert sum("the task's areas" in line for line in lines) == 1

@@ -110,7 +110,9 @@ def test_learn_with_the_largest_seed_writes_a_pool(shared_recordings, tmp_path):
         shutil.copy(shared_recordings / name, demos / name)
     command = [sys.executable, "-m", "besman", "learn", "--demos", str(demos), "--out", str(out)]
     result = subprocess.run(
-        [*command, "--tasks", "2", "--budget", "1", "--seed", str(TOP)], capture_output=True, text=True
+        [*command, "--training-tasks", "2", "--budget", "1", "--seed", str(TOP)],
+        capture_output=True,
+        text=True,
     )
     assert result.returncode == 0, result.stderr[-3000:]
     record = json.loads((out / "reach.json").read_text())

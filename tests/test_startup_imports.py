@@ -30,7 +30,7 @@ print(code, sorted({{name.partition(".")[0] for name in sys.modules}} & set({HEA
         ("robots show ur5e", ["mujoco"]),
         ("pool ls examples/pools/pick_place_aila", []),
         ("pool show examples/pools/pick_place_aila reach", []),
-        ("demos show examples/data/subject1_run1.tsv", []),
+        ("recordings show examples/data/subject1_run1.tsv", []),
         ("tree check examples/trees/grasp_then_place_learned.yaml", ["mujoco"]),
         ("tree show examples/trees/grasp_then_place.yaml", ["mujoco"]),
         ("tree nodes", ["mujoco"]),

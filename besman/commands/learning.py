@@ -21,7 +21,7 @@ def _roles(text: str) -> tuple[tuple[str, str], ...]:
 
 def _learn(args: argparse.Namespace) -> int:
     from besman.core.errors import InputError
-    from besman.learning.pipeline.learn import LearnSettings, learn
+    from besman.learning.pipeline.end_to_end import LearnSettings, learn
     from besman.tasks import DEFAULT, TASKS, task
 
     chosen = task(args.task or DEFAULT)  # an unknown name is refused with the list, before any work
@@ -33,7 +33,7 @@ def _learn(args: argparse.Namespace) -> int:
             f"task {chosen.name} has no building blocks to learn; tasks that learn: {', '.join(learnable)}"
         )
     settings = LearnSettings(
-        tasks=args.tasks,
+        tasks=args.training_tasks,
         budget=args.budget,
         seed=args.seed,
         backend=args.backend,
@@ -86,7 +86,11 @@ def register(commands) -> None:
     )
     learn.add_argument("--robot", help="the robot (default: the task's)")
     learn.add_argument(
-        "--tasks", type=COUNT, default=8, help="training tasks K per building block (default 8)"
+        "--training-tasks",
+        type=COUNT,
+        default=8,
+        metavar="K",
+        help="training tasks K per building block (default 8; formerly --tasks)",
     )
     learn.add_argument("--budget", type=COUNT, default=48, help="rollouts per training task (default 48)")
     learn.add_argument("--seed", type=SEED, default=0)

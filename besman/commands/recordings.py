@@ -1,4 +1,4 @@
-"""`besman segment` and `besman demos`: human recordings inspected and cut into labelled segments."""
+"""`besman segment` and `besman recordings`: human recordings inspected and cut into labelled segments."""
 
 from __future__ import annotations
 
@@ -108,7 +108,7 @@ def _few_shot_labels(args: argparse.Namespace, demo, segmentation) -> list[str |
     return labels
 
 
-def _demos_show(args: argparse.Namespace) -> int:
+def _recordings_show(args: argparse.Namespace) -> int:
     from besman.learning import load
 
     demo = load(args.file)
@@ -176,9 +176,11 @@ def register(commands) -> None:
     )
     segment.set_defaults(handler=_segment)
 
-    demos = commands.add_parser("demos", help="inspect recordings")
-    demo_commands = demos.add_subparsers(dest="demos_command", metavar="ACTION", required=True)
-    demos_show = demo_commands.add_parser("show", help="duration, rate, markers and gaps of a recording")
-    demos_show.add_argument("file")
-    demos_show.add_argument("--json", action="store_true")
-    demos_show.set_defaults(handler=_demos_show)
+    recordings = commands.add_parser(
+        "recordings", help="inspect recordings of people (formerly besman demos)"
+    )
+    actions = recordings.add_subparsers(dest="recordings_command", metavar="ACTION", required=True)
+    show = actions.add_parser("show", help="duration, rate, markers and gaps of a recording")
+    show.add_argument("file")
+    show.add_argument("--json", action="store_true")
+    show.set_defaults(handler=_recordings_show)

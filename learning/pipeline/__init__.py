@@ -1,5 +1,6 @@
 """``besman learn``: recordings (or a robot's dataset) to a template pool of a task's building blocks
-(:mod:`~besman.learning.pipeline.building_blocks`). :mod:`~besman.learning.pipeline.learn` runs the stages:
+(:mod:`~besman.learning.pipeline.building_blocks`). :mod:`~besman.learning.pipeline.end_to_end` runs the
+stages:
 :mod:`~besman.learning.pipeline.labels` (recordings loaded, segmented and labelled),
 :mod:`~besman.learning.pipeline.task_structure` (the blocks' order as the recordings show it),
 :mod:`~besman.learning.pipeline.imitation` and :mod:`~besman.learning.pipeline.retargeting` (a primitive per
@@ -8,3 +9,8 @@ block, on the robot), :mod:`~besman.learning.pipeline.refinement` and
 record in :mod:`~besman.learning.pipeline.record`, its figures in :mod:`~besman.learning.pipeline.plots`;
 a robot's demonstrations from a LeRobot dataset in :mod:`~besman.learning.pipeline.dataset_demonstrations`.
 """
+
+from besman.core.moved import old_names
+
+# The names of the module this package was (besman.learning.X), for one release.
+__getattr__ = old_names(__name__)

@@ -1,6 +1,7 @@
 """What learning needs of a task: its building blocks, where each begins and how a rollout of one is scored.
 
-A task that learns from recordings (:mod:`besman.tasks`) hands :func:`~besman.learning.pipeline.learn.learn` a
+A task that learns from recordings (:mod:`besman.tasks`) hands
+:func:`~besman.learning.pipeline.end_to_end.learn` a
 :class:`BuildingBlocks`; the pipeline names no task and no block of its own.
 """
 

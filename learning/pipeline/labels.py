@@ -1,5 +1,5 @@
-"""The first stages of :func:`~besman.learning.pipeline.learn.learn`: the recordings loaded and checked, each
-one segmented (``work/segments/``), and the movements labelled as the task's building blocks
+"""The first stages of :func:`~besman.learning.pipeline.end_to_end.learn`: the recordings loaded and checked,
+each one segmented (``work/segments/``), and the movements labelled as the task's building blocks
 (``work/labels.json``)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The figures :func:`besman.learning.pipeline.learn.learn` writes beside the pool.
+"""The figures :func:`besman.learning.pipeline.end_to_end.learn` writes beside the pool.
 
 - ``segmentations.png``: each recording's hand speed, its segment boundaries, and the instances of the
   task's blocks shaded in their colours;

@@ -136,10 +136,10 @@ def learn_record(
 
 
 def claim_output(out: Path, record: dict, force: bool) -> None:
-    """Checks the output folder before anything is written (see :func:`~besman.learning.pipeline.learn.learn`)
-    and writes ``record`` unless the run resumes; then removes the temporaries that a killed learn left, if
-    the folder is known to be besman's (its record, or nothing in it but besman's temporaries; never in a
-    folder of the user's that ``force`` writes into)."""
+    """Checks the output folder before anything is written (see
+    :func:`~besman.learning.pipeline.end_to_end.learn`) and writes ``record`` unless the run resumes; then
+    removes the temporaries that a killed learn left, if the folder is known to be besman's (its record, or
+    nothing in it but besman's temporaries; never in a folder of the user's that ``force`` writes into)."""
     record_path = out / "work" / "learn.json"
     if out.exists() and not out.is_dir():
         raise LearnError(f"{out}: the output is a file, not a pool folder")

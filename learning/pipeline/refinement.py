@@ -1,4 +1,4 @@
-"""The last stages of :func:`~besman.learning.pipeline.learn.learn`: each building block imitated
+"""The last stages of :func:`~besman.learning.pipeline.end_to_end.learn`: each building block imitated
 (``work/imitated/``) and retargeted onto the robot (``work/shapes/``), refined by CMA-ES for its training
 tasks (``work/refined/``), and stored as a skill template in the pool.
 
@@ -208,7 +208,7 @@ def store_templates(
             seed=settings.seed,
             task=f"{blocks.task}/{robot}",
             provenance={
-                "learner": "besman.learning.pipeline.learn.learn",
+                "learner": "besman.learning.pipeline.end_to_end.learn",
                 "robot": robot,
                 "recordings": record["recordings"],
                 "instances": prototype.provenance.get("segments", []),

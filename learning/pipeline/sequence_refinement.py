@@ -1,4 +1,4 @@
-"""The refinement stage of :func:`~besman.learning.pipeline.learn.learn` when the blocks are refined as a
+"""The refinement stage of :func:`~besman.learning.pipeline.end_to_end.learn` when the blocks are refined as a
 sequence (``refinement="sequence"`` jointly, ``"sequence-by-block"`` one after the other for comparison): per
 training task, every block's parameters - its primitive's forcing weights and its subgoals - are refined on
 rollouts of the whole task (:func:`~besman.learning.search.hierarchical.refine_sequence`), each rollout with

@@ -250,7 +250,7 @@ _plugins_loaded = False
 def register_optimizer(name: str, factory: Callable[..., Optimizer]) -> None:
     """Adds the optimiser ``factory`` under ``name`` (lower case, digits, ``-`` and ``_``): chosen by name
     wherever besman searches (``besman learn --optimizer``,
-    :class:`~besman.learning.pipeline.learn.LearnSettings`,
+    :class:`~besman.learning.pipeline.end_to_end.LearnSettings`,
     :func:`make_optimizer`). A name already taken is refused."""
     if not isinstance(name, str) or not re.fullmatch(r"[a-z][a-z0-9_-]*", name):
         raise InputError(f"an optimiser's name is lower case (a-z, 0-9, - and _), got {name!r}")

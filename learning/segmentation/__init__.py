@@ -7,3 +7,8 @@ and boundary F1), :mod:`~besman.learning.segmentation.boundaries` (segments turn
 ones), :mod:`~besman.learning.segmentation.labelling` (which segments are the same building block) and
 :mod:`~besman.learning.segmentation.plot`.
 """
+
+from besman.core.moved import old_names
+
+# The names of the module this package was (besman.learning.X), for one release.
+__getattr__ = old_names(__name__)
