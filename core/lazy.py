@@ -1,5 +1,6 @@
-"""A package's names imported on first use: ``__getattr__, __dir__ = lazy_names(__name__, homes)`` in its
-``__init__``, ``homes`` mapping each name to its module within the package (or, dotted, any module).
+"""A package's names imported on first use: ``__getattr__, __dir__, __all__ = lazy_names(__name__, modules)``
+in its ``__init__``, ``modules`` mapping each module within the package (or, dotted, any module) to the
+names it gives the package.
 Importing one light module of the package (or printing the command line's help) then does not import the
 heavy ones (scipy, MuJoCo)."""
 
@@ -12,9 +13,11 @@ from collections.abc import Callable, Mapping
 from besman.core.moved import MOVED_NAMES, old_names
 
 
-def lazy_names(package: str, homes: Mapping[str, str]) -> tuple[Callable, Callable]:
-    """The ``__getattr__`` and ``__dir__`` of ``package`` whose names live in ``homes`` (name -> module name
-    relative to the package); a name is imported when first used, then kept."""
+def lazy_names(package: str, modules: Mapping[str, tuple[str, ...]]) -> tuple[Callable, Callable, list[str]]:
+    """The ``__getattr__``, ``__dir__`` and ``__all__`` of ``package`` whose names live in ``modules``
+    (module name, relative to the package unless dotted -> its names); a name is imported when first used,
+    then kept."""
+    homes = {name: module for module, names in modules.items() for name in names}
 
     def __getattr__(name: str):
         if name not in homes:
@@ -29,4 +32,4 @@ def lazy_names(package: str, homes: Mapping[str, str]) -> tuple[Callable, Callab
     def __dir__() -> list[str]:
         return sorted({*vars(sys.modules[package]), *homes})
 
-    return __getattr__, __dir__
+    return __getattr__, __dir__, sorted(homes)

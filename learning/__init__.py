@@ -22,36 +22,24 @@ from besman.learning.search.policy_search import policy_search
 # named as their modules are imported above: importing a module binds its name in the package, over a lazy
 # name.
 _HOMES = {
-    "CMAES": "besman.learning.search.policy_search",
-    "CREPS": "besman.learning.search.contextual",
-    "XNES": "besman.learning.search.policy_search",
-    "ContextBox": "besman.learning.search.contextual",
-    "ContextualCMAES": "besman.learning.search.contextual",
-    "Demonstration": "besman.learning.segmentation.demonstration",
-    "DemonstrationError": "besman.learning.segmentation.demonstration",
-    "DemonstrationSegment": "besman.learning.segmentation.labelling",
-    "Segment": "besman.learning.segmentation.demonstration",
-    "SegmentModel": "besman.learning.segmentation.changepoints",
-    "Segmentation": "besman.learning.segmentation.segmenter",
-    "SegmentationPrior": "besman.learning.segmentation.changepoints",
-    "SequenceResult": "besman.learning.search.hierarchical",
-    "SmoothingConfig": "besman.learning.segmentation.preprocessing",
-    "WarmStart": "besman.learning.search.policy_search",
-    "cluster": "besman.learning.segmentation.labelling",
-    "ground_truth_segments": "besman.learning.segmentation.labelling",
-    "grouping_accuracy": "besman.learning.segmentation.labelling",
-    "hand_pose": "besman.learning.segmentation.preprocessing",
-    "imitate": "besman.learning.pipeline.imitation",
-    "label_few_shot": "besman.learning.segmentation.labelling",
-    "load": "besman.learning.segmentation.demonstration",
-    "make_optimizer": "besman.learning.search.policy_search",
-    "refine_sequence": "besman.learning.search.hierarchical",
-    "resample": "besman.learning.segmentation.preprocessing",
-    "segment": "besman.learning.segmentation.segmenter",
-    "segments_of": "besman.learning.segmentation.labelling",
-    "smooth": "besman.learning.segmentation.preprocessing",
+    "besman.learning.pipeline.imitation": ("imitate",),
+    "besman.learning.search.contextual": ("CREPS", "ContextBox", "ContextualCMAES"),
+    "besman.learning.search.hierarchical": ("SequenceResult", "refine_sequence"),
+    "besman.learning.search.policy_search": ("CMAES", "WarmStart", "XNES", "make_optimizer"),
+    "besman.learning.segmentation.changepoints": ("SegmentModel", "SegmentationPrior"),
+    "besman.learning.segmentation.demonstration": ("Demonstration", "DemonstrationError", "Segment", "load"),
+    "besman.learning.segmentation.labelling": (
+        "DemonstrationSegment",
+        "cluster",
+        "ground_truth_segments",
+        "grouping_accuracy",
+        "label_few_shot",
+        "segments_of",
+    ),
+    "besman.learning.segmentation.preprocessing": ("SmoothingConfig", "hand_pose", "resample", "smooth"),
+    "besman.learning.segmentation.segmenter": ("Segmentation", "segment"),
 }
-__all__ = ["contextual_search", "policy_search", *_HOMES]
 
 
-__getattr__, __dir__ = lazy_names(__name__, _HOMES)
+__getattr__, __dir__, _lazy = lazy_names(__name__, _HOMES)
+__all__ = ["contextual_search", "policy_search", *_lazy]

@@ -15,25 +15,14 @@ from besman.core.lazy import lazy_names
 # Where each name lives; imported on first use, so that reading a description (listing and showing tasks)
 # does not bring scipy's linear algebra and the inverse kinematics with it.
 _HOMES = {
-    "DescriptionError": "description",
-    "Gripper": "gripper",
-    "IKResult": "ik",
-    "JointGroup": "robot",
-    "Pose": "kinematics",
-    "Robot": "robot",
-    "RobotArm": "robot",
-    "RobotDescription": "description",
-    "available": "catalogue",
-    "build_spec": "assembly",
-    "choose": "catalogue",
-    "compile_spec": "robot",
-    "describe": "catalogue",
-    "forward_kinematics": "kinematics",
-    "load": "robot",
-    "site_pose": "kinematics",
-    "solve_ik": "ik",
+    "assembly": ("build_spec",),
+    "catalogue": ("available", "choose", "describe"),
+    "description": ("DescriptionError", "RobotDescription"),
+    "gripper": ("Gripper",),
+    "ik": ("IKResult", "solve_ik"),
+    "kinematics": ("Pose", "forward_kinematics", "site_pose"),
+    "robot": ("JointGroup", "Robot", "RobotArm", "compile_spec", "load"),
 }
-__all__ = list(_HOMES)
 
 
-__getattr__, __dir__ = lazy_names(__name__, _HOMES)
+__getattr__, __dir__, __all__ = lazy_names(__name__, _HOMES)

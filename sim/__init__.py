@@ -20,16 +20,13 @@ from besman.core.lazy import lazy_names
 # Where each name lives; imported on first use, so that a light module of the package (its objects) does
 # not bring MuJoCo and the executor with it.
 _HOMES = {
-    "Arm": "arm",
-    "Evaluation": "evaluation",
-    "Executor": "executor",
-    "ExecutorConfig": "executor",
-    "MotionStatus": "motions",
-    "TaskBounds": "besman.skills.task_bounds",
-    "World": "world",
-    "tabletop_world": "world",
+    "arm": ("Arm",),
+    "besman.skills.task_bounds": ("TaskBounds",),
+    "evaluation": ("Evaluation",),
+    "executor": ("Executor", "ExecutorConfig"),
+    "motions": ("MotionStatus",),
+    "world": ("World", "tabletop_world"),
 }
-__all__ = list(_HOMES)
 
 
-__getattr__, __dir__ = lazy_names(__name__, _HOMES)
+__getattr__, __dir__, __all__ = lazy_names(__name__, _HOMES)

@@ -300,21 +300,18 @@ def plan_pick(
     # check, the first that misses the least (the placement before the margin).
     leg = None
     for lift in lifts:
-        candidate = _first_within_range(
-            plan_leg(
-                arm,
-                start,
-                [np.r_[object_xy, grasp_z + approach], np.r_[object_xy, grasp_z], np.r_[object_xy, lift]],
-                ("descend", "lift"),
-                plan.descend_time,
-                allowed=(item.name,),
-                settings=settings,
-                yaws=yaws,
-                guarded=GUARDED_MOVES,
-                accept=passes,
-                misses=misses,
-            )
-            for approach in _clearances(item, plan)
+        candidate = _vertical_leg(
+            arm,
+            start,
+            object_xy,
+            lambda approach, lift=lift: (grasp_z + approach, grasp_z, lift),
+            ("descend", "lift"),
+            item,
+            plan,
+            settings=settings,
+            yaws=yaws,
+            accept=passes,
+            misses=misses,
         )
         if candidate is not None and candidate.clearance >= -OVERSHOOT:
             leg = candidate
@@ -345,6 +342,25 @@ def _clearances(item: GraspableObject, plan: PickPlacePlan) -> tuple[float, ...]
 # inverse-kinematics solutions at the limit, and the execution holds the joint there (a hair's deviation
 # from the line); farther, it would run into the limit at speed.
 OVERSHOOT = 0.0
+
+
+def _vertical_leg(arm: Arm, start, xy, heights, names, item: GraspableObject, plan: PickPlacePlan, **options):
+    """The leg down to ``xy`` and up again through the three ``heights(clearance)``, for each of the
+    object's clearances (:func:`_clearances`) in turn: the first within every joint's range, else the first
+    planned (:func:`_first_within_range`); ``options`` go to :func:`plan_leg`."""
+    return _first_within_range(
+        plan_leg(
+            arm,
+            start,
+            [np.r_[xy, z] for z in heights(clearance)],
+            names,
+            plan.descend_time,
+            allowed=(item.name,),
+            guarded=GUARDED_MOVES,
+            **options,
+        )
+        for clearance in _clearances(item, plan)
+    )
 
 
 def _first_within_range(legs) -> Leg | None:
@@ -470,22 +486,19 @@ def plan_place(
     # Carried to above the target, or where that carry dips over the shelf's edge, to higher above it (a
     # joint-space carry from a low lift climbs more steeply to a higher end).
     for above in (carry_z, carry_z + CARRY_RAISE):
-        leg = _first_within_range(
-            plan_leg(
-                arm,
-                start,
-                [np.r_[place_xy, above], np.r_[place_xy, place_z], np.r_[place_xy, place_z + retreat]],
-                ("place", "retreat"),
-                plan.descend_time,
-                allowed=(item.name,),
-                settings=settings,
-                yaws=yaws,
-                guarded=GUARDED_MOVES,
-                shift=shift,
-                accept=carried_clear,
-                misses=misses,
-            )
-            for retreat in _clearances(item, plan)
+        leg = _vertical_leg(
+            arm,
+            start,
+            place_xy,
+            lambda retreat, above=above: (above, place_z, place_z + retreat),
+            ("place", "retreat"),
+            item,
+            plan,
+            settings=settings,
+            yaws=yaws,
+            shift=shift,
+            accept=carried_clear,
+            misses=misses,
         )
         if leg is not None or not swept:
             break

@@ -25,24 +25,16 @@ from besman.core.lazy import lazy_names
 # Each name and the module it comes from, imported when first used: the command line imports
 # ``besman.core.errors`` and must not pay for scipy and scikit-learn to print its help.
 _EXPORTS = {
-    "CartesianDMP": "cartesian_dmp",
-    "CartesianTrajectory": "cartesian_dmp",
-    "DMP": "dmp",
-    "Trajectory": "dmp",
-    "DMPSettings": "dmp_core",
-    "Primitive": "dmp_core",
-    "ArgumentTypeError": "besman.core.errors",
-    "BesmanError": "besman.core.errors",
-    "InputError": "besman.core.errors",
-    "ForcingBasis": "forcing",
-    "PoolError": "pool",
-    "SkillTemplatePool": "pool",
-    "MovementPrimitive": "primitive",
-    "TaskBounds": "task_bounds",
-    "SkillTemplate": "template",
+    "besman.core.errors": ("ArgumentTypeError", "BesmanError", "InputError"),
+    "cartesian_dmp": ("CartesianDMP", "CartesianTrajectory"),
+    "dmp": ("DMP", "Trajectory"),
+    "dmp_core": ("DMPSettings", "Primitive"),
+    "forcing": ("ForcingBasis",),
+    "pool": ("PoolError", "SkillTemplatePool"),
+    "primitive": ("MovementPrimitive",),
+    "task_bounds": ("TaskBounds",),
+    "template": ("SkillTemplate",),
 }
 
-__all__ = sorted(_EXPORTS)
 
-
-__getattr__, __dir__ = lazy_names(__name__, _EXPORTS)
+__getattr__, __dir__, __all__ = lazy_names(__name__, _EXPORTS)

@@ -22,20 +22,17 @@ PLACES = {
 DEFAULT_CONFIGURATION = {"aila": {"object": (0.55, -0.08, 0.0), "place": (0.54, -0.41, 0.0)}}
 FAMILY = ObjectFamily()  # boxes and cylinders 4-7 cm wide, 5-8 cm high, 0.1-0.3 kg, friction 0.7-1.0
 DEFAULT_OBJECT = {"shape": (0,), "size": (0.06, 0.06, 0.06)}  # the 6 cm box, clipped to what fits
-OBJECT = TaskValue(
-    "object",
-    ("object_x", "object_y", "object_yaw"),
-    ("m", "m", "deg"),
-    "where the object stands on the table, and its yaw",
-    surface="table",
-)
-PLACE = TaskValue(
-    "place",
-    ("place_x", "place_y", "place_yaw"),
-    ("m", "m", "deg"),
-    "where the object goes on the shelf, and the yaw it should stand at",
-    surface="shelf",
-    target=True,
+
+
+def _pose(name: str, description: str, surface: str, target: bool = False) -> TaskValue:
+    """A task value that places something on a surface: x and y (m) and its yaw (deg)."""
+    columns = tuple(f"{name}_{column}" for column in ("x", "y", "yaw"))
+    return TaskValue(name, columns, ("m", "m", "deg"), description, surface=surface, target=target)
+
+
+OBJECT = _pose("object", "where the object stands on the table, and its yaw", "table")
+PLACE = _pose(
+    "place", "where the object goes on the shelf, and the yaw it should stand at", "shelf", target=True
 )
 SHAPE = TaskValue("shape", ("shape",), "", "the object's shape", whole=True, choices=FAMILY.shapes)
 SIZE = TaskValue(
