@@ -12,11 +12,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
-from besman.experiments.throwing.config import ExperimentConfig
+from besman.experiments.throwing.config import TASK_OF_VARIANT, ExperimentConfig
 from besman.learning.search.feasibility import pull_back
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.skills import zero_shot
-from besman.tasks.throwing.rollouts import ThrowingConfig, ThrowingRollouts
+from besman.tasks import task
+from besman.tasks.throwing.rollouts import ThrowingRollouts
 
 BATCH = 256  # rollouts per evaluate() call: the rollout's state buffers grow with the batch
 VALIDATION_SEED = 20_141_000  # the validation targets: their own seed, never a grid
@@ -29,7 +30,9 @@ def distances_of(rewards: np.ndarray) -> np.ndarray:
 
 @dataclass
 class ThrowingBench:
-    """The task of ``config.variant`` and its targets; ``backend`` is the task's ("threads" or "ray")."""
+    """The rollouts of the registry's task of ``config.variant``
+    (:data:`~besman.experiments.throwing.config.TASK_OF_VARIANT`) and its targets; ``backend`` is the
+    rollouts' ("threads" or "ray")."""
 
     config: ExperimentConfig
     backend: str = "threads"
@@ -37,7 +40,8 @@ class ThrowingBench:
     task: ThrowingRollouts = field(init=False)
 
     def __post_init__(self) -> None:
-        self.task = ThrowingConfig(variant=self.config.variant).build()
+        throwing = task(TASK_OF_VARIANT[self.config.variant])  # its batched rollouts: what policy search uses
+        self.task = throwing.batched(throwing.robot)
         self.theta0 = self.task.default_theta()
         bounds = self.task.bounds
         axes = [np.linspace(lo, hi, self.config.grid) for lo, hi in zip(bounds.low, bounds.high, strict=True)]

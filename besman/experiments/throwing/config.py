@@ -21,6 +21,8 @@ ZERO_SHOT_METHODS = (
 CURVE_METHODS = ("tabula_rasa", "weight_proportional", "uncertainty", "isotropic", "nearest_start")
 CONTEXTUAL_METHODS = ("creps", "contextual_cmaes")
 VARIANTS = ("bootstrapped", "goal_only")
+# The registry's task that the experiment throws in, by ExperimentConfig.variant.
+TASK_OF_VARIANT = {"paper": "throwing", "hardware": "throwing-hardware"}
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,8 @@ class ExperimentConfig:
     variant: str = "paper"
 
     def __post_init__(self) -> None:
+        if self.variant not in TASK_OF_VARIANT:
+            raise InputError(f"variant must be one of {', '.join(TASK_OF_VARIANT)}, got {self.variant!r}")
         if self.seeds < 1 or self.grid < 2 or min(self.ks, default=0) < 1:
             raise InputError("need at least one seed, a grid of at least 2 x 2 and training sets of K >= 1")
         if list(self.ks) != sorted(set(self.ks)):
