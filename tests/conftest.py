@@ -10,10 +10,11 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 SHARED_RECORDINGS = Path(__file__).resolve().parents[2] / "shared" / "data" / "dfki_pick_and_place"
 
-# Each test file's time in the last full run (setup, call and teardown of its tests, s), written by
-# ``pytest -m "" --record-durations``: the suite's workers take whole files in order (--dist loadfile),
-# longest first, so that no long file starts last and leaves one worker running alone at the end. A file
-# not listed yet runs after those listed.
+# Each test file's time in the last full run (setup, call and teardown of its tests, s), kept by
+# ``pytest -m "" --record-durations`` (the README's test command, so every CI run and every full local run
+# keeps them; a run updates the files it ran and keeps the others'): the suite's workers take whole files in
+# order (--dist loadfile), longest first, so that no long file starts last and leaves one worker running
+# alone at the end. A file not listed yet runs after those listed.
 DURATIONS = Path(__file__).with_name("durations.json")
 
 
@@ -40,7 +41,10 @@ def pytest_runtest_logreport(report) -> None:
 def pytest_sessionfinish(session) -> None:
     recording = session.config.getoption("--record-durations")
     if recording and not hasattr(session.config, "workerinput"):  # the controller (or a run without xdist)
-        seconds = {name: round(total, 1) for name, total in _spent.most_common()}
+        kept = json.loads(DURATIONS.read_text())["seconds"] if DURATIONS.is_file() else {}
+        kept.update({name: round(total, 1) for name, total in _spent.items()})
+        kept = {name: kept[name] for name in kept if (Path(__file__).parent / name).is_file()}  # files gone
+        seconds = dict(sorted(kept.items(), key=lambda item: -item[1]))
         DURATIONS.write_text(json.dumps({"schema_version": 1, "seconds": seconds}, indent=1) + "\n")
 
 

@@ -11,9 +11,9 @@
   object to the other hand, letting go of it, making room).
 
 The reach, the carry and the return can come from skill templates learned from people
-(:mod:`besman.learning.pipeline.learn`), instantiated for the move the leaf plans (the hand's move from the
-block's start to its planned end, :func:`~besman.sim.block_simulation.block_input`: the same for any object,
-place or task) and refined online where the template is unsure.
+(:mod:`besman.learning.pipeline.end_to_end`), instantiated for the move the leaf plans (the hand's move from
+the block's start to its planned end, :func:`~besman.sim.block_simulation.block_input`: the same for any
+object, place or task) and refined online where the template is unsure.
 
 The subtrees that use them are in :mod:`besman.trees.idioms`.
 """
