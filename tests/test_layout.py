@@ -144,3 +144,10 @@ def test_no_throwing_name_below_the_tasks():
         str(p.relative_to(ROOT)) for f in ("sim", "trees", "learning") for p in (ROOT / f).rglob("*throw*.py")
     ]
     assert named == []
+
+
+def test_the_concepts_page_lists_the_tasks_in_the_registrys_order():
+    from besman.tasks import TASKS
+
+    page = (ROOT / "docs" / "concepts.md").read_text()
+    assert f"list(TASKS)  # {list(TASKS)}" in page

@@ -270,3 +270,21 @@ def test_issue_39s_acceptance_follows_the_numbers():
     found = acceptance(results)
     assert not found["outcome_template"]["holds"] and found["outcome_template"]["median_k10"] is None
     assert not found["creps"]["holds"] and found["creps"]["mean_at_1200"] is None
+
+
+def test_the_experiment_throws_in_the_registrys_task(monkeypatch):
+    """The experiment starts from the task registry (its task's batched rollouts), as every command does."""
+    from besman.experiments.throwing.bench import ThrowingBench
+    from besman.experiments.throwing.config import ExperimentConfig
+    from besman.tasks import task
+
+    entry, asked = task("throwing"), []
+    batched = type(entry).batched
+
+    def counted(self, robot):
+        asked.append(robot)
+        return batched(self, robot)
+
+    monkeypatch.setattr(type(entry), "batched", counted)
+    bench = ThrowingBench(ExperimentConfig.quick())
+    assert asked == ["pa10"] and list(bench.task.bounds.low) == list(entry.bounds("pa10").low)
