@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from helpers import run_cli
 
 from besman.core.errors import InputError
 from besman.core.writer_lock import OutputBusyError
@@ -22,7 +23,6 @@ from besman.datasets import format as fmt
 from besman.datasets.reader import DatasetError, read_dataset
 from besman.datasets.writer import DatasetSpec, DatasetWriter, Episode
 from besman.tasks.recording import CAMERA, record_run
-from tests.helpers import run_cli
 
 FEATURES = {
     "observation.state": {"dtype": "float32", "shape": [3], "names": ["a", "b", "c"]},

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import py_trees
 import pytest
+from helpers import run_cli
 
 from besman.core.errors import InputError
 from besman.core.writer_lock import OutputBusyError
@@ -21,7 +22,6 @@ from besman.tasks.running import run
 from besman.tasks.throwing.rollouts import BROKEN_REWARD, ThrowingRollouts
 from besman.trees import TreeFileError, load_tree
 from besman.trees.runner import node_paths
-from tests.helpers import run_cli
 
 TREES = Path(__file__).resolve().parents[1] / "examples" / "trees"
 
@@ -586,8 +586,9 @@ def test_ctrl_c_at_any_moment_prints_one_line_and_leaves_only_whole_files(
     import subprocess
     import sys
 
+    from helpers import is_whole, sigint_by_default
+
     from besman.trees.runner import read_log
-    from tests.helpers import is_whole, sigint_by_default
 
     demos = tmp_path / "demos"
     demos.mkdir()
@@ -645,7 +646,7 @@ def test_a_ctrl_c_that_python_would_only_report_is_raised_again(hooked):
     import subprocess
     import sys
 
-    from tests.helpers import sigint_by_default
+    from helpers import sigint_by_default
 
     install = "sys.unraisablehook = besman.stopping.ctrl_c_again(sys.unraisablehook)" if hooked else ""
     code = "\n".join(

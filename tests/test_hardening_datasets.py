@@ -15,13 +15,13 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from helpers import run_cli
 
 from besman.core.errors import InputError
 from besman.core.storage import WriteError
 from besman.datasets import format as fmt
 from besman.datasets.reader import DatasetError, read_dataset
 from besman.datasets.writer import DatasetSpec, DatasetWriter, Episode
-from tests.helpers import run_cli
 
 CAMERA = "observation.images.cam"
 FEATURES = {

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import install_plugin, run_cli, snapshot
 
 from besman import examples
 from besman.core.errors import InputError
@@ -24,7 +25,6 @@ from besman.tasks.environment import TaskEnv
 from besman.trees import TreeFileError, load_tree
 from besman.trees.files import MAX_INCLUDES
 from besman.trees.runner import LOG_KIND
-from tests.helpers import install_plugin, run_cli, snapshot
 from tests.test_hardening_writes import small_space, tmpfs  # noqa: F401 (fixtures: a full disk, a size limit)
 
 EXAMPLES = examples.path()

@@ -19,11 +19,11 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import is_whole, run_cli, snapshot
 
 from besman.core.storage import WriteError
 from besman.core.writer_lock import OutputBusyError, WriterLock
 from besman.trees.runner import read_log
-from tests.helpers import is_whole, run_cli, snapshot
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMOS = ROOT / "examples" / "data"

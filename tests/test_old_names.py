@@ -9,10 +9,10 @@ import warnings
 from pathlib import Path
 
 import pytest
+from helpers import run_cli
 
 from besman.cli import OLD_SPELLINGS, respelled
 from besman.core.moved import MOVED, MOVED_NAMES
-from tests.helpers import run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 MOVED_PAIRS = [

@@ -8,6 +8,7 @@ import textwrap
 import numpy as np
 import py_trees
 import pytest
+from helpers import run_cli
 from sklearn.gaussian_process import GaussianProcessRegressor
 
 from besman.core.errors import InputError
@@ -22,7 +23,6 @@ from besman.skills.template import SkillTemplate
 from besman.skills.template_models import leave_one_out_means, per_dimension_kernel
 from besman.trees import Runner, load_tree
 from besman.trees.blackboard import set_task_values
-from tests.helpers import run_cli
 
 BOX = TaskBounds(("x", "y"), (-1.0, 0.0), (1.0, 2.0))
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import differing_files, kill_and_resume, run_cli
 from PIL import Image
 
 from besman.experiments.throwing.claims import A_ROLLOUTS, acceptance, claims, goals, rollouts_to_reach
@@ -22,7 +23,6 @@ from besman.experiments.throwing.experiment import (
     field_series,
     summary,
 )
-from tests.helpers import differing_files, kill_and_resume, run_cli
 
 QUICK = ("experiment", "throwing", "--quick")
 

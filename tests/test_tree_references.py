@@ -9,10 +9,10 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from helpers import run_cli
 
 from besman.core.errors import InputError
 from besman.trees import TreeFileError, check_tree, load_tree, register_pool, register_template, registry
-from tests.helpers import run_cli
 
 MODULE = "besman_test_recorder"  # a module that leaves a marker beside itself when it is imported
 TREE = """besman_tree: 1

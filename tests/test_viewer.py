@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import run_cli, serve_then_interrupt
 from PIL import Image
 
 from besman.sim.viewer import MAX_FRAME_GAP, Viewer, headless_chromium
 from besman.tasks.running import prepare, run
 from besman.trees import grasp_then_place
 from besman.trees.watching import Watch
-from tests.helpers import run_cli, serve_then_interrupt
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 WIDTH, HEIGHT = 1280, 800
@@ -164,7 +164,7 @@ def test_demo_view_serves_on_localhost_until_interrupted(tmp_path):
 def test_view_replay_ends_as_every_command_on_ctrl_c_and_sigterm(tmp_path, signum):
     """``besman view --replay`` serves until stopped, then ends as every command does: exit 130 after Ctrl-C
     and 143 after SIGTERM, one line (``besman: interrupted`` / ``besman: terminated``), no traceback and no
-    viser "Server stopped" (:func:`~tests.helpers.serve_then_interrupt` checks them)."""
+    viser "Server stopped" (:func:`helpers.serve_then_interrupt` checks them)."""
     import sys
 
     log = tmp_path / "run.jsonl"
