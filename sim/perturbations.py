@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+import mujoco
 import numpy as np
 
 from besman.core.errors import InputError
@@ -29,6 +30,10 @@ if TYPE_CHECKING:  # tasks declare their perturbations at import, which must sta
     from besman.robots.kinematics import Pose
 
 MODES = ("perception", "push")
+# m a pushed object may overlap what it touches (its support, at rest, a fraction of a millimetre), and the
+# shares of the shift tried in turn (the first free one is taken).
+PUSH_OVERLAP = 0.002
+PUSH_SHARES = (1.0, 0.5, 0.25)
 
 
 def check_mode(perturb: str | None) -> None:
@@ -102,13 +107,19 @@ def _turned_about_z(quaternion: np.ndarray, angle: float) -> np.ndarray:
 @dataclass
 class PushObject:
     """Pushes ``object`` by ``shift`` (x, y in m) on the table once, when the motion named ``during`` has run
-    ``at`` of its planned duration. Call it after every control cycle or tick with the executor."""
+    ``at`` of its planned duration. Call it after every control cycle or tick with the executor.
+
+    The object is moved as a hand would push it: only to where it overlaps nothing (no contact deeper than
+    :data:`PUSH_OVERLAP`), so the whole shift, or else half or a quarter of it in the same direction; where
+    none is free (a finger in the way), it stays and the push counts as ``blocked``. Moved into a finger, the
+    contact's force would throw it out of the simulation (MuJoCo's "simulation is unstable")."""
 
     object: str
     shift: tuple[float, float]
     during: str = "reach"
     at: float = 0.5
     done: bool = False
+    blocked: bool = False
 
     def __call__(self, executor) -> bool:
         """Whether it pushed now."""
@@ -118,11 +129,37 @@ class PushObject:
         dmp = getattr(getattr(motion, "primitive", None), "dmp", None)
         if dmp is None or motion.cycles * executor.config.control_period < self.at * dmp.execution_time:
             return False
-        world = executor.world
-        pose = world.object_pose(self.object)
-        world.set_object_pose(self.object, pose.position + np.r_[self.shift, 0.0], pose.quaternion)
         self.done = True
-        return True
+        self.blocked = push_free(executor.world, self.object, self.shift) == 0.0
+        return not self.blocked
 
     def describe(self) -> dict:
-        return {"object": self.object, "shift_m": [round(v, 4) for v in self.shift], "done": self.done}
+        return {
+            "object": self.object,
+            "shift_m": [round(v, 4) for v in self.shift],
+            "done": self.done,
+            "blocked": self.blocked,
+        }
+
+
+def push_free(world, name: str, shift) -> float:
+    """Moves object ``name`` by the first share of ``shift`` (x, y in m) in :data:`PUSH_SHARES` where it
+    overlaps nothing deeper than :data:`PUSH_OVERLAP`, and returns the share; where none is free it stays
+    as it was (its speed too) and the share is 0."""
+    pose, body = world.object_pose(name), world.object_body(name)
+    velocity = world.data.qvel.copy()
+    for share in PUSH_SHARES:
+        world.set_object_pose(name, pose.position + share * np.r_[shift, 0.0], pose.quaternion)
+        if _deepest_contact(world, body) <= PUSH_OVERLAP:
+            return share
+    world.set_object_pose(name, pose.position, pose.quaternion)
+    world.data.qvel[:] = velocity
+    mujoco.mj_forward(world.model, world.data)
+    return 0.0
+
+
+def _deepest_contact(world, body: int) -> float:
+    """How deep (m) the deepest contact of ``body``'s geoms overlaps (0 without one)."""
+    contacts = world.data.contact
+    mine = (world.model.geom_bodyid[contacts.geom] == body).any(axis=1)
+    return max(0.0, -float(contacts.dist[mine].min())) if mine.any() else 0.0

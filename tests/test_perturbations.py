@@ -17,7 +17,7 @@ from besman.sim.executor import Executor
 from besman.sim.manipulation import DEFAULT_PLAN, PICK_STEPS, hand_yaw, plan_pick
 from besman.sim.motions import MotionStatus
 from besman.sim.objects import GraspableObject, yaw_of
-from besman.sim.perturbations import Perception, Perturbations
+from besman.sim.perturbations import Perception, Perturbations, push_free
 from besman.sim.world import tabletop_world
 from besman.tasks import task
 from besman.tasks.running import prepare, run
@@ -156,3 +156,21 @@ def test_perturbing_needs_a_seed_and_a_task_that_declares_perturbations(capsys):
         prepare("throwing", seed=1, perturb="push")
     with pytest.raises(InputError, match="perturb must be one of perception, push"):
         prepare("pick-place", seed=1, perturb="wind")
+
+
+@pytest.mark.parametrize(
+    ("gap", "share"),
+    [(0.05, 1.0), (0.02, 0.5), (0.01, 0.25), (0.005, 0.0)],  # m between the 6 cm boxes before a 3 cm push
+)
+def test_a_push_moves_the_object_only_as_far_as_it_is_free(gap, share):
+    """A push toward another object stops short of overlapping it (pushed into it, the contact's force would
+    throw the object out of the simulation); where no share of it is free, the object stays, at its speed."""
+    box, other = GraspableObject("box", size=(0.03,) * 3), GraspableObject("other", size=(0.03,) * 3)
+    world = tabletop_world((box, other))
+    world.place_on("box", "table", 0.5, 0.0)
+    world.place_on("other", "table", 0.5 + 0.06 + gap, 0.0)
+    before = world.object_pose("box").position
+    assert push_free(world, "box", (0.03, 0.0)) == share
+    moved = world.object_pose("box").position - before
+    assert moved[0] == pytest.approx(0.03 * share, abs=1e-9) and abs(moved[1]) < 1e-9
+    assert world.data.warning.number.sum() == 0
