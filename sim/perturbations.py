@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-import mujoco
 import numpy as np
 
 from besman.core.errors import InputError
@@ -146,6 +145,8 @@ def push_free(world, name: str, shift) -> float:
     """Moves object ``name`` by the first share of ``shift`` (x, y in m) in :data:`PUSH_SHARES` where it
     overlaps nothing deeper than :data:`PUSH_OVERLAP`, and returns the share; where none is free it stays
     as it was (its speed too) and the share is 0."""
+    import mujoco  # here: listing the tasks imports this module, and must not bring MuJoCo
+
     pose, body = world.object_pose(name), world.object_body(name)
     velocity = world.data.qvel.copy()
     for share in PUSH_SHARES:
