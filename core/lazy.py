@@ -18,11 +18,12 @@ def lazy_names(package: str, modules: Mapping[str, tuple[str, ...]]) -> tuple[Ca
     (module name, relative to the package unless dotted -> its names); a name is imported when first used,
     then kept."""
     homes = {name: module for module, names in modules.items() for name in names}
+    moved = old_names(package) if package in MOVED_NAMES else None  # names that left it, for one release
 
     def __getattr__(name: str):
         if name not in homes:
-            if package in MOVED_NAMES:  # a name that left the package, for one release
-                return old_names(package)(name)
+            if moved is not None:
+                return moved(name)
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
         home = homes[name]
         value = getattr(importlib.import_module(home if "." in home else f"{package}.{home}"), name)

@@ -108,9 +108,8 @@ class MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         return importlib.machinery.ModuleSpec(name, self)
 
     def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType:
-        warnings.warn(
-            f"{spec.name} is now {MOVED[spec.name]}", DeprecationWarning, stacklevel=2
-        )  # importlib's frames are skipped
+        # stacklevel 2: the importing line (warnings skips importlib's own frames)
+        warnings.warn(f"{spec.name} is now {MOVED[spec.name]}", DeprecationWarning, stacklevel=2)
         module = importlib.import_module(MOVED[spec.name])
         spec.loader_state = module.__spec__  # loading sets the module's __spec__ to this one: put back below
         return module

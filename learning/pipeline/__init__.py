@@ -10,7 +10,7 @@ record in :mod:`~besman.learning.pipeline.record`, its figures in :mod:`~besman.
 a robot's demonstrations from a LeRobot dataset in :mod:`~besman.learning.pipeline.dataset_demonstrations`.
 """
 
-from besman.core.moved import old_names
+from besman.core.moved import old_names as _old_names
 
 # The names of the module this package was (besman.learning.X), for one release.
-__getattr__ = old_names(__name__)
+__getattr__ = _old_names(__name__)

@@ -8,7 +8,7 @@ ones), :mod:`~besman.learning.segmentation.labelling` (which segments are the sa
 :mod:`~besman.learning.segmentation.plot`.
 """
 
-from besman.core.moved import old_names
+from besman.core.moved import old_names as _old_names
 
 # The names of the module this package was (besman.learning.X), for one release.
-__getattr__ = old_names(__name__)
+__getattr__ = _old_names(__name__)
