@@ -32,8 +32,9 @@ Top-level fields (schema version 2; a field the version does not have is refused
 - ``options`` (optional): simulation options the model or an attached part needs (``impratio``, ``cone``,
   ``timestep``; ``noslip_iterations``: MuJoCo's no-slip solver, for a grip that must not turn an object
   held off its middle, as the handover's bar; ``integrator``: ``Euler``, ``RK4``, ``implicit`` or
-  ``implicitfast``, as MJCF spells them: fragments leave Euler, which takes actuator damping explicitly);
-  at attach the parent's win
+  ``implicitfast``, as MJCF spells them; a tabletop world integrates ``implicit`` unless this names one:
+  Euler takes actuator damping explicitly, implicitfast leaves out the Coriolis derivatives a grasped object
+  spinning between the pads needs); at attach the parent's win
 - ``mount`` (optional): ``{"position": [x, y, z], "yaw_degrees": deg}``: where the robot's root bodies stand
   (turned about z, then shifted), however the model orients them
 - ``floor`` (optional): true: besman's floor and lights for a model that has none (a raised mount gets a

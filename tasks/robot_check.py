@@ -387,7 +387,7 @@ def _integrator(world: World, name: str, file) -> Finding:
         + ("settles" if stable else f"grows {growth:.2f} times a step: the simulation diverges")
     )
     fix = (
-        f"set options.integrator \"implicitfast\" in {file} (MuJoCo's Euler takes the actuators' damping "
+        f"set options.integrator \"implicit\" in {file} (MuJoCo's Euler takes the actuators' damping "
         "explicitly: damping x timestep / inertia above 2 diverges), or a smaller options.timestep"
     )
     return Finding(name, "the integrator keeps the joints stable", stable, measured, fix)

@@ -89,23 +89,22 @@ def test_a_joint_slowed_by_its_damping_is_told_by_its_cause_and_the_velocity_sug
 
 
 def test_the_integrator_is_an_option_and_euler_with_a_stiff_light_finger_is_named(tmp_path):
-    """A finger servo with kv 60 on 50 g: MuJoCo's Euler (the fragments' default) takes kv explicitly and the
-    finger runs off (real physics); the check names the joint and says to set options.integrator, which the
-    description now accepts, spelt as MuJoCo spells it."""
+    """A finger servo with kv 60 on 50 g: MuJoCo's Euler (the fragments' default, named here: a tabletop world
+    otherwise integrates implicitly) takes kv explicitly and the finger runs off (real physics); the check
+    names the joint and says to set options.integrator, spelt as MuJoCo spells it."""
     stiff = PINCER.replace('<position joint="left" kp="100"', '<position joint="left" kp="100" kv="60"')
     results = {}
-    for options in ({}, {"integrator": "implicitfast"}):
+    for options in ({"integrator": "Euler"}, {}):
         world = tabletop_world((), robot=brought(tmp_path, stiff, options=options))
         found = _integrator(world, "arm", "FILE")
         world.data.ctrl[1] = 0.03
-        for _ in range(1500):  # 3 s: implicitfast's finger settles (kv / kp 0.6 s)
+        for _ in range(1500):  # 3 s: the implicit finger settles (kv / kp 0.6 s)
             mujoco.mj_step(world.model, world.data)
         results[found.passed] = found, world.data.qpos[world.model.joint("left").qposadr[0]]
     euler, ran_off = results[False]
     assert euler.measured.startswith("Euler at timestep 0.002 s: the least stable joint, left")
     assert (
-        "grows 1.30 times a step" in euler.measured
-        and 'options.integrator "implicitfast" in FILE' in euler.fix
+        "grows 1.30 times a step" in euler.measured and 'options.integrator "implicit" in FILE' in euler.fix
     )
     assert abs(ran_off - 0.03) > 0.01 and results[True][1] == pytest.approx(0.03, abs=1e-3)
     for bad in ("euler", 3):
