@@ -40,6 +40,7 @@ from besman.cli import main
 from besman.core.writer_lock import WriterLock
 from besman.learning.pipeline.end_to_end import LearnError, LearnSettings, learn
 from besman.learning.pipeline.labels import longest_run
+from besman.learning.pipeline.refinement import REPEATS
 from besman.learning.pipeline.retargeting import WorkspaceMap, fit_workspace_map, retarget
 from besman.learning.search.online import MAX_ROLLOUTS, refine_online, uncertainty
 from besman.learning.segmentation.labelling import DemonstrationSegment
@@ -409,6 +410,23 @@ def test_a_small_learn_writes_templates_with_provenance_and_figures(small_pool):
     assert all(len(run["task_tau"]) == task_columns for run in facts["training"])
     for figure in ("summary.png", "segmentations.png", "learning_curves.png"):
         assert (small_pool / figure).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_each_refined_theta_is_kept_only_where_it_beat_the_start_beyond_the_noise(small_pool):
+    """The block's rollouts reproduce, so the start and the best theta evaluated again have noise 0 and the
+    search's own rewards: the refined theta is kept where it gained anything, else the retargeted shape."""
+    for path in sorted((small_pool / "work" / "refined").glob("*.json")):
+        run = json.loads(path.read_text())
+        verdict = run["acceptance"]
+        assert verdict["noise"] == 0.0 and verdict["evaluations"] == REPEATS, path.name
+        shape = MovementPrimitive.load(small_pool / "work" / "shapes" / f"{run['block']}.json")
+        if verdict["accepted"]:
+            assert verdict["improvement"] == run["reward"] - run["start_reward"] > 0.0, path.name
+            assert run["theta"] != shape.theta.tolist(), path.name
+        else:
+            assert verdict["improvement"] <= 0.0 and run["reward"] == run["start_reward"], path.name
+            assert run["theta"] == shape.theta.tolist(), path.name
 
 
 @pytest.mark.slow

@@ -14,6 +14,7 @@ import pytest
 import yaml
 from test_learning_pipeline import _learn
 
+from besman.learning.pipeline.sequence_refinement import EVALUATION_ROLLOUTS
 from besman.skills import SkillTemplatePool
 
 
@@ -33,6 +34,15 @@ def test_a_learn_that_refines_the_sequence_writes_its_subgoals_into_the_tree(sha
     assert record["settings"]["refinement"] == "sequence"
     documents = [json.loads((out / "work" / "refined" / f"sequence-{k}.json").read_text()) for k in (0, 1)]
     assert all(d["rollouts"] == 8 and d["refinement"] == "sequence" for d in documents)
+    for document in documents:  # judged on the paired evaluation rollouts: kept only beyond the noise
+        verdict = document["acceptance"]
+        assert verdict["evaluations"] == EVALUATION_ROLLOUTS and verdict["noise"] >= 0.0
+        assert verdict["accepted"] == (verdict["improvement"] > verdict["noise"])
+        assert (
+            (document["after"] == document["refined"])
+            if verdict["accepted"]
+            else (document["after"] == document["before"])
+        )
     pool = SkillTemplatePool(out)
     assert sorted(pool) == ["carry", "reach", "return"] and len(pool["reach"].taus) == 2
     tree = yaml.safe_load((out / "tree.yaml").read_text())

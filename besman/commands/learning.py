@@ -20,6 +20,8 @@ def _roles(text: str) -> tuple[tuple[str, str], ...]:
 
 
 def _learn(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from besman.core.errors import InputError
     from besman.learning.pipeline.end_to_end import LearnSettings, learn
     from besman.tasks import DEFAULT, TASKS, task
@@ -60,7 +62,13 @@ def _learn(args: argparse.Namespace) -> int:
     for block, runs in result.refined.items():
         refined = sum(run["outcome"]["success"] for run in runs)
         retargeted = sum(run["start_outcome"]["success"] for run in runs)
-        print(f"  {block}: {len(runs)} training tasks, succeeded retargeted {retargeted}, refined {refined}")
+        verdicts = [run["acceptance"] for run in runs if "acceptance" in run]  # older work files have none
+        line = f"  {block}: {len(runs)} training tasks, succeeded retargeted {retargeted}, refined {refined}"
+        if verdicts:
+            gained, noise = (np.mean([v[key] for v in verdicts]) for key in ("improvement", "noise"))
+            kept = sum(v["accepted"] for v in verdicts)
+            line += f"; refinement kept in {kept} (reward gained {gained:.3g}, noise {noise:.3g} on average)"
+        print(line)
     print("figures: " + ", ".join(str(path) for path in result.figures), file=sys.stderr)
     return 0
 

@@ -29,6 +29,7 @@ from besman.learning.pipeline.record import (
     write_json,
 )
 from besman.learning.pipeline.retargeting import fit_workspace_map, retarget
+from besman.learning.search.acceptance import judge
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.learning.segmentation.demonstration import Demonstration
 from besman.learning.segmentation.labelling import DemonstrationSegment
@@ -257,19 +258,30 @@ def _refine_task(
 
     search = make_optimizer(settings.optimizer, WarmStart(theta0[weights], settings.spread), seed=seed)
     result = policy_search(objective, [search], budget=settings.budget)[0]
-    theta = theta0.copy()
-    theta[weights] = result.best_theta
+    best = theta0.copy()
+    best[weights] = result.best_theta
+    again = task.evaluate(
+        np.repeat([theta0, best], REPEATS, axis=0), np.tile(tau, (2 * REPEATS, 1)), backend=settings.backend
+    ).rewards
+    acceptance = judge(again[:REPEATS], again[REPEATS:])
+    kept = best if acceptance.accepted else theta0
     return {
         "tau": [float(v) for v in tau],
         "input": [float(v) for v in task.input(tau)],
-        "theta": theta.tolist(),
-        "reward": result.best_reward,
+        "theta": kept.tolist(),
+        "reward": result.best_reward if acceptance.accepted else result.start_reward,
         "start_reward": result.start_reward,
-        "rollouts": result.rollouts + 1,
+        "acceptance": acceptance.to_json(),
+        "rollouts": result.rollouts + 1 + 2 * REPEATS,
         "curve": result.curve().tolist(),
-        "outcome": dataclasses.asdict(outcomes[result.best_theta.tobytes()]),
+        "outcome": dataclasses.asdict(outcomes[kept[weights].tobytes()]),
         "start_outcome": dataclasses.asdict(outcomes[theta0[weights].tobytes()]),
     }
+
+
+# Evaluations of the start and of the best theta again, which measure the reward's noise (the block's
+# rollouts reproduce bit for bit: it is 0, and the search's own rewards are checked by it).
+REPEATS = 2
 
 
 def forcing_weights(shape: MovementPrimitive) -> np.ndarray:

@@ -8,8 +8,10 @@ counts whole-task rollouts.
 Each training task's result is cached in ``work/refined/sequence-<k>.json`` and given to the templates as
 the per-block stage gives its own: per block the refined theta, the block's template input at the task (the
 hand's planned move), and the block's reward and success before and after, measured on
-:data:`EVALUATION_ROLLOUTS` rollouts with the same perturbations (not counted in the budget). The subgoals
-go to the task's tree (:func:`subgoals`).
+:data:`EVALUATION_ROLLOUTS` rollouts with the same perturbations (not counted in the budget). Those paired
+rollouts judge the refinement (:mod:`~besman.learning.search.acceptance`): where the whole task's reward did
+not improve by more than its noise, the start is kept ("after" is then "before"; "refined" keeps what the
+search found). The subgoals go to the task's tree (:func:`subgoals`).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from besman.learning.pipeline.record import (
     write_json,
 )
 from besman.learning.pipeline.refinement import plannable
+from besman.learning.search.acceptance import judge
 from besman.learning.search.hierarchical import refine_sequence
 from besman.learning.search.policy_search import WarmStart
 
@@ -137,18 +140,28 @@ def _refine_task(task, tau: np.ndarray, settings: LearnSettings, seed: int, prog
     seeds = [child_seed(seed, EVALUATION_STREAM, i) % 2**31 for i in range(EVALUATION_ROLLOUTS)]
     before = objective.rollouts([np.tile(s.mean, (len(seeds), 1)) for s in starts], seeds)
     after = objective.rollouts([np.tile(t, (len(seeds), 1)) for t in result.thetas], seeds)
+    acceptance = judge(_rewards(before), _rewards(after))
+    thetas = result.thetas if acceptance.accepted else [s.mean for s in starts]
     return {
         "tau": [float(v) for v in tau],
         "refinement": settings.refinement,
-        "thetas": [theta.tolist() for theta in result.thetas],
-        "primitive_thetas": [p.tolist() for p in task.primitive_thetas(result.thetas)],
-        "subgoals": task.subgoals(result.thetas),
+        "thetas": [theta.tolist() for theta in thetas],
+        "primitive_thetas": [p.tolist() for p in task.primitive_thetas(thetas)],
+        "subgoals": task.subgoals(thetas),
         "rollouts": result.rollouts,
         "costs": result.costs,
         "before": _measured(before),
-        "after": _measured(after),
+        "after": _measured(after if acceptance.accepted else before),
+        "refined": _measured(after),
+        "acceptance": acceptance.to_json(),
         "stopped": result.stopped,
     }
+
+
+def _rewards(details) -> np.ndarray:
+    """Each whole-task rollout's reward: minus the costs of the blocks that ran (a failed block's cost is
+    the failure's)."""
+    return -np.array([np.nansum(detail.costs) for detail in details])
 
 
 def _measured(details) -> dict:
@@ -187,4 +200,5 @@ def _block_result(document: dict, index: int, block: str) -> dict:
         "curve": curve.tolist(),  # as the per-block stage's: rollout, reward, best so far
         "outcome": outcome(after),
         "start_outcome": outcome(before),
+        **({"acceptance": document["acceptance"]} if "acceptance" in document else {}),
     }
