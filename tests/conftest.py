@@ -48,6 +48,20 @@ def pytest_sessionfinish(session) -> None:
         DURATIONS.write_text(json.dumps({"schema_version": 1, "seconds": seconds}, indent=1) + "\n")
 
 
+@pytest.fixture(autouse=True)
+def mujoco_warnings(request):
+    """MuJoCo's warnings while the test runs ("simulation is unstable", ...), in this process: any fails the
+    test unless it is marked ``mujoco_warnings`` (it provokes them); a test may also read the list."""
+    import mujoco
+
+    said: list[str] = []
+    mujoco.set_mju_user_warning(said.append)
+    yield said
+    mujoco.set_mju_user_warning(None)
+    if said and request.node.get_closest_marker("mujoco_warnings") is None:
+        pytest.fail(f"MuJoCo warned {len(said)} times: {said[0].strip()}", pytrace=False)
+
+
 @pytest.fixture
 def shared_recordings() -> Path:
     """The DFKI pick-and-place recordings beside the repository (``../shared``); skips without them."""

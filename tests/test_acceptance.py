@@ -27,7 +27,6 @@ chosen as seeds no other test or tuning used), 0-9 for the others.
 
 from __future__ import annotations
 
-import mujoco
 import pytest
 from helpers import run_within_limits
 
@@ -82,15 +81,6 @@ def _beyond_limits(violations: list[str], passed: float) -> list[str]:
     return [
         v for v in violations if not (v.startswith("range limit") and float(v.rsplit(" ", 1)[1]) < passed)
     ]
-
-
-@pytest.fixture
-def mujoco_warnings():
-    """MuJoCo's warnings while the test runs (its own callback, put back after)."""
-    said: list[str] = []
-    mujoco.set_mju_user_warning(said.append)
-    yield said
-    mujoco.set_mju_user_warning(None)
 
 
 @pytest.mark.slow

@@ -130,6 +130,7 @@ def test_closing_on_nothing_fails_when_a_grasp_is_expected(executor):
     assert not executor.hand.holds("box")
 
 
+@pytest.mark.mujoco_warnings  # provokes the fault it detects
 def test_a_simulation_fault_fails_the_motion_and_the_world_resets(executor):
     world = executor.world
     motion = executor.start(MoveTo("move", target=executor.position + 0.2))

@@ -501,6 +501,10 @@ def test_online_refinement_stays_within_its_budget_and_keeps_what_it_found():
     result = refine_online(world, start, template, tau, seed=3)
     assert result.rollouts <= MAX_ROLLOUTS and uncertainty(template, tau) > 0
     assert result.best_reward >= result.mean_reward
+    # The mean and the best run again in the fork: the same rewards (noise 0), any gain kept.
+    verdict = result.acceptance
+    assert verdict.noise == 0.0 and verdict.evaluations == 2
+    assert verdict.accepted == result.improved == (result.best_reward > result.mean_reward)
     outcome = rollout(world, start, result.primitive)  # the chosen theta, run again: the same rollout
     assert Reward().score(outcome) == pytest.approx(max(result.best_reward, result.mean_reward))
     assert outcome.success == result.success

@@ -84,6 +84,7 @@ TINY = """
 """
 
 
+@pytest.mark.mujoco_warnings  # provokes the fault it detects
 def test_fault_monitor_reports_nan_divergence_warnings_and_ranges():
     model = mujoco.MjModel.from_xml_string(TINY)
     data = mujoco.MjData(model)

@@ -252,7 +252,8 @@ class _Plan(SimulationBehaviour):
         self.refinement = refine_online(executor.world, start, template, tau)
         note = (
             f"; refined online (spread {spread:.2f}): {self.refinement.rollouts} rollouts, "
-            f"reward {self.refinement.mean_reward:.3f} -> {self.refinement.best_reward:.3f}"
+            f"reward {self.refinement.mean_reward:.3f} -> {self.refinement.best_reward:.3f}, "
+            + ("kept" if self.refinement.improved else "not kept: no gain beyond the noise")
         )
         return self._planned(goal, item, self.refinement.primitive), note
 

@@ -6,7 +6,9 @@ variance, in theta units: 0.1 rad per unit for the pick-and-place blocks). Where
 rollouts of the block in a fork of the world (:meth:`besman.sim.world.World.fork`, the simulation state of
 the moment) can find a better theta: CMA-ES started at N(Theta(tau), Omega(tau)) - the exploration the
 template itself prescribes (Metzen et al. 2014) - for at most :data:`MAX_ROLLOUTS` rollouts, the mean's
-included. The real execution then uses the best theta if it beat the mean.
+included. The mean and the best theta are run once more, and the real execution uses the best theta only if
+it beat the mean by more than the reward's noise (:mod:`besman.learning.search.acceptance`; the fork's
+rollouts reproduce, so the noise is 0).
 """
 
 from __future__ import annotations
@@ -15,14 +17,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from besman.learning.search.acceptance import Acceptance, judge
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.sim.block_simulation import BlockStart, Reward, rollout
 from besman.sim.world import World
 from besman.skills import MovementPrimitive, SkillTemplate
 
-MAX_ROLLOUTS = 25
+POPULATION = 8
+REPEATS = 1  # the mean and the best theta evaluated again: the reward's noise (0: the fork reproduces)
+MAX_ROLLOUTS = 1 + 3 * POPULATION + 2 * REPEATS  # the mean, three generations of eight, the two again: 27
 DEFAULT_REWARD = Reward()
-POPULATION = 8  # the mean and three generations of eight: 25 rollouts
 
 
 def varying(template: SkillTemplate) -> np.ndarray:
@@ -46,10 +50,11 @@ class Refinement:
     best_reward: float
     rollouts: int
     success: bool  # the chosen theta's rollout succeeded
+    acceptance: Acceptance | None = None  # None: nothing was explored
 
     @property
     def improved(self) -> bool:
-        return self.best_reward > self.mean_reward
+        return self.acceptance is not None and self.acceptance.accepted
 
 
 def refine_online(
@@ -86,14 +91,17 @@ def refine_online(
 
     spread = np.sqrt(np.maximum(np.diag(covariance)[mask], 1e-12))
     search = make_optimizer(optimizer, WarmStart(mean[mask], spread), seed=seed, population_size=POPULATION)
-    result = policy_search(objective, [search], budget=max(1, budget - 1))[0]
-    chosen = result.best_theta if result.best_reward > result.start_reward else mean[mask]
+    result = policy_search(objective, [search], budget=max(1, budget - 1 - 2 * REPEATS))[0]
+    again = objective(np.repeat([mean[mask], result.best_theta], REPEATS, axis=0), np.zeros(2 * REPEATS))
+    acceptance = judge([result.start_reward, *again[:REPEATS]], [result.best_reward, *again[REPEATS:]])
+    chosen = result.best_theta if acceptance.accepted else mean[mask]
     theta = mean.copy()
     theta[mask] = chosen
     return Refinement(
         template.primitive(theta, tau),
         result.start_reward,
         result.best_reward,
-        result.rollouts + 1,
+        result.rollouts + 1 + 2 * REPEATS,
         successes[chosen.tobytes()],
+        acceptance,
     )
