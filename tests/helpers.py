@@ -414,3 +414,123 @@ def install_plugin(site: Path, distribution: str, group: str, module: str, name:
     info.mkdir(parents=True)
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {distribution}\nVersion: 1.0\n")
     (info / "entry_points.txt").write_text(f"[{group}]\n{name or module} = {module}\n")
+
+
+# -- the open-loop tasks (ball-in-a-cup, the puck strike) ---------------------------------------------------
+
+
+def mujoco_warnings_said():
+    """A fixture's body: the MuJoCo warnings said while the test runs (a list, filled as they come)."""
+    import mujoco
+
+    said: list[str] = []
+    mujoco.set_mju_user_warning(said.append)
+    yield said
+    mujoco.set_mju_user_warning(None)
+
+
+def closing(task):
+    """A fixture's body: ``task`` (its rollouts), closed after the tests that use it."""
+    yield task
+    task.close()
+
+
+def assert_bit_identical_in_any_order(task, thetas, taus):
+    """Five rollouts give the same rewards and details twice, in another order and alone; the first
+    evaluation."""
+    first = task.evaluate(thetas, taus)
+    again = task.evaluate(thetas, taus)
+    order = np.array([3, 0, 4, 2, 1])
+    shuffled = task.evaluate(thetas[order], taus[order])
+    alone = task.evaluate(thetas[2], taus[2])
+    np.testing.assert_array_equal(first.rewards, again.rewards)
+    np.testing.assert_array_equal(first.rewards[order], shuffled.rewards)
+    assert first.rewards[2] == alone.rewards[0]
+    assert first.details == again.details
+    return first
+
+
+def assert_no_mujoco_warnings(task, thetas, taus, said) -> None:
+    """Rollouts of ``thetas`` in ``taus`` say no MuJoCo warning (``said``: the fixture's list) and none
+    diverges."""
+    result = task.evaluate(thetas, taus)
+    assert said == []
+    assert all(d.failure != "the simulation diverged" for d in result.details)
+    assert sum(int(d.warning.number.sum()) for d in task._datas) == 0
+
+
+def assert_too_fast_is_penalised_not_simulated(task, tau, failure_reward: float) -> None:
+    """A wrist that would move far beyond its speed limit is refused before simulation, with a penalty."""
+    theta = task.still_theta()
+    theta[-12:-2] += 30.0  # wrist 3's forcing term: far beyond its speed limit
+    result = task.evaluate(theta, tau)
+    assert result.rewards[0] < failure_reward
+    assert re.match(
+        "the reference (exceeds the speed limit|leaves the range) of joint wrist_3", result.details[0].failure
+    )
+    assert not task.feasible(theta)[0] and task.feasible(task.still_theta())[0]
+
+
+def assert_demonstration_file_is(demo: Path, synthetic, task, folder: Path, load, save) -> None:
+    """The file ``demo`` is the ``synthetic`` motion (a task's, from its start) that ``save`` writes, ``load``
+    reads it, and a file of a later schema is refused."""
+    import pytest
+
+    from besman.core.errors import InputError
+
+    times, positions = load(demo)
+    assert json.loads(demo.read_text())["synthetic"] is True
+    _, expected, _ = synthetic(task.start, times)
+    np.testing.assert_allclose(positions, expected, atol=1e-6)
+    written = save(folder / "demo.json", task.start, task.arm.joints)
+    assert written.read_text() == demo.read_text()
+    record = json.loads(demo.read_text())
+    record["schema_version"] = 99
+    (folder / "future.json").write_text(json.dumps(record))
+    with pytest.raises(InputError, match="schema_version 99"):
+        load(folder / "future.json")
+
+
+def replayed_everywhere(task, positions, velocities, taus):
+    """The evaluation of one joint reference (n_steps + 1, 6), as it is, at every tau (N, d)."""
+    n = len(taus)
+    return task.evaluate_references(np.repeat(positions[None], n, 0), np.repeat(velocities[None], n, 0), taus)
+
+
+def assert_cmaes_succeeds(task, theta, tau, *, sigma: float, budget: int) -> None:
+    """CMA-ES from ``theta`` (two seeds) finds a theta that succeeds at ``tau``."""
+    from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
+
+    optimizers = [make_optimizer("cmaes", WarmStart(theta, sigma), seed=seed) for seed in range(2)]
+    results = policy_search(
+        lambda thetas, owners: task.evaluate(thetas, tau).rewards,
+        optimizers,
+        budget=budget,
+        target_reward=1e-9,
+    )
+    for result in results:
+        assert result.start_reward < 0 < result.best_reward
+        assert task.evaluate(result.best_theta, tau).details[0].success
+
+
+def assert_runs_as_a_gymnasium_environment(name: str) -> None:
+    """The task ``name`` passes gymnasium's checks; a reset draws tau in its box and a step holding still
+    neither rewards nor ends."""
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+
+    from besman.tasks import task as registered
+    from besman.tasks.environment import TaskEnv
+
+    env = TaskEnv(name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # its advice (normalised boxes) is not a failure
+        check_env(env)
+    observation, _ = env.reset(seed=2)
+    box = registered(name).bounds("ur5e")
+    tau = observation["environment_state"]
+    assert np.all((np.asarray(box.low) <= tau) & (tau <= np.asarray(box.high)))
+    _, reward, terminated, _, _ = env.step(observation["state"][: env.action_space.shape[0]])
+    assert reward == 0.0 and not terminated
+    env.close()

@@ -96,7 +96,7 @@ def test_the_wheel_and_sdist_pass_twine_and_the_installed_wheel_runs_from_an_emp
     assert result["status"] == "SUCCESS" and result["success"] is True
     assert Path(installed.besman("examples", "--copy", ".", cwd=tmp_path).strip()) == Path("examples")
     trees = sorted(str(p.relative_to(tmp_path)) for p in (tmp_path / "examples" / "trees").glob("*.yaml"))
-    assert len(trees) == 11
+    assert len(trees) == 12
     installed.besman("tree", "check", *trees, cwd=tmp_path)
 
 

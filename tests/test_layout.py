@@ -150,4 +150,4 @@ def test_the_concepts_page_lists_the_tasks_in_the_registrys_order():
     from besman.tasks import TASKS
 
     page = (ROOT / "docs" / "concepts.md").read_text()
-    assert f"list(TASKS)  # {list(TASKS)}" in page
+    assert f"list(TASKS)\n# {list(TASKS)}\n" in page
