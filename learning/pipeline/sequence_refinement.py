@@ -102,13 +102,13 @@ class _Objective:
     def rollouts(self, thetas: list[np.ndarray], seeds: list[int]):
         n = len(thetas[0])
         taus = np.array([np.r_[self.tau, seeds[i], i % 2] for i in range(n)])
-        return self.task.evaluate(np.hstack(thetas), taus, backend=self.backend).details
+        return self.task.evaluate(np.hstack(thetas), taus, backend=self.backend)
 
     def __call__(self, thetas: list[np.ndarray]) -> np.ndarray:
         self.calls += 1
         n = len(thetas[0])
         seeds = [child_seed(self.seed, self.calls, i) % 2**31 for i in range(n)]
-        details = self.rollouts(thetas, seeds)
+        details = self.rollouts(thetas, seeds).details
         self.progress(n)
         return impute(np.array([detail.costs for detail in details], dtype=float), self.task.config.reward)
 
@@ -138,9 +138,10 @@ def _refine_task(task, tau: np.ndarray, settings: LearnSettings, seed: int, prog
         evaluate_start=False,
     )
     seeds = [child_seed(seed, EVALUATION_STREAM, i) % 2**31 for i in range(EVALUATION_ROLLOUTS)]
-    before = objective.rollouts([np.tile(s.mean, (len(seeds), 1)) for s in starts], seeds)
-    after = objective.rollouts([np.tile(t, (len(seeds), 1)) for t in result.thetas], seeds)
-    acceptance = judge(_rewards(before), _rewards(after))
+    evaluated = objective.rollouts([np.tile(s.mean, (len(seeds), 1)) for s in starts], seeds)
+    refined = objective.rollouts([np.tile(t, (len(seeds), 1)) for t in result.thetas], seeds)
+    acceptance = judge(evaluated.rewards, refined.rewards)  # each rollout's: minus the costs of its blocks
+    before, after = evaluated.details, refined.details
     thetas = result.thetas if acceptance.accepted else [s.mean for s in starts]
     return {
         "tau": [float(v) for v in tau],
@@ -156,12 +157,6 @@ def _refine_task(task, tau: np.ndarray, settings: LearnSettings, seed: int, prog
         "acceptance": acceptance.to_json(),
         "stopped": result.stopped,
     }
-
-
-def _rewards(details) -> np.ndarray:
-    """Each whole-task rollout's reward: minus the costs of the blocks that ran (a failed block's cost is
-    the failure's)."""
-    return -np.array([np.nansum(detail.costs) for detail in details])
 
 
 def _measured(details) -> dict:
