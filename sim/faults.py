@@ -23,6 +23,16 @@ SERIOUS_WARNINGS = (
 )
 
 
+def counted_warnings(data: mujoco.MjData) -> tuple[str, ...]:
+    """Every warning MuJoCo has counted in ``data`` since its last reset, with its count (``"BADQACC: 1"``):
+    what a worker process's simulation said, which its parent never sees printed."""
+    return tuple(
+        f"{warning.name.removeprefix('mjWARN_')}: {data.warning[warning].number}"
+        for warning in mujoco.mjtWarning.__members__.values()
+        if warning != mujoco.mjtWarning.mjNWARNING and data.warning[warning].number
+    )
+
+
 class FaultMonitor:
     """Checks a simulation for faults since the last :meth:`reset`.
 

@@ -28,7 +28,7 @@ from besman.tasks.base import Task
 
 DEFAULT = "pick-place"  # the task of ``besman demo`` without a name, and of ``besman learn``
 # Modules of this package that are not tasks.
-FRAMEWORK = ("base", "environment", "frames", "recording", "robot_check", "running", "session")
+FRAMEWORK = ("base", "environment", "episodes", "frames", "recording", "robot_check", "running", "session")
 
 
 ENTRY_POINTS = "besman.tasks"  # the group under which other distributions name their task modules

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from besman.core.errors import InputError
-from besman.learning.search.acceptance import judge
+from besman.learning.search.acceptance import judge, reevaluated
 
 
 def test_the_noise_is_the_starts_spread_over_repeated_evaluations_and_the_gain_must_exceed_it():
@@ -45,3 +45,19 @@ def test_rollouts_that_reproduce_have_no_noise_any_gain_is_kept_and_no_tie_or_lo
 def test_unpaired_or_missing_rewards_are_refused(start, refined, message):
     with pytest.raises(InputError, match=message):
         judge(start, refined)
+
+
+def test_a_search_is_judged_on_its_start_and_best_evaluated_again_in_one_batch():
+    batches = []
+
+    def noisy(thetas):  # the reward is -|theta|, plus a noise that differs between evaluations
+        batches.append(len(thetas))
+        return -np.abs(thetas[:, 0]) + np.tile([0.0, 0.3], len(thetas) // 2)
+
+    verdict = reevaluated(noisy, np.array([1.0]), np.array([0.9]), 2, searched=(-1.0, -0.6))
+    assert batches == [4]  # the start twice, then the best twice
+    # start: -1.0 (searched), -1.0, -0.7; best: -0.6 (searched), -0.9, -0.6: gained 0.2, noise 0.17
+    assert verdict.evaluations == 3 and verdict.improvement == pytest.approx(0.2)
+    assert verdict.noise == pytest.approx(np.std([-1.0, -1.0, -0.7], ddof=1)) and verdict.accepted
+    assert not reevaluated(noisy, np.array([1.0]), np.array([0.95]), 2).accepted  # 0.05 inside 0.21
+    assert "noise 0.212 over 2 evaluations: not kept" in reevaluated(noisy, [1.0], [0.95], 2).text()

@@ -2,7 +2,8 @@
 measure of it to the last digit, whatever ran before in the process, in which order a batch comes, on the
 local worker processes and on Ray. Pick and place's rollouts (its blocks one at a time, and whole perturbed
 tasks, its rollout seed in tau) from the committed AILA pool's shapes, at thetas spread as a search's first
-generations are."""
+generations are; and whole runs of the learned trees of the other manipulation tasks (sort, stack,
+handover: their final states included)."""
 
 from __future__ import annotations
 
@@ -11,14 +12,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from besman.sim.evaluation import evaluate_on_ray
 from besman.tasks import task
+from besman.tasks.episodes import EpisodeOutcome, TreeEpisodesConfig
 from besman.tasks.pick_place.blocks import BLOCKS, BlockRollouts, BlockTaskConfig
 from besman.tasks.pick_place.sequence import SequenceConfig, SequenceRollouts
 
 ROBOT = "aila"
-SHAPES = (
-    Path(__file__).resolve().parents[1] / "examples" / "pools" / f"pick_place_{ROBOT}" / "work" / "shapes"
-)
+ROOT = Path(__file__).resolve().parents[1]
+SHAPES = ROOT / "examples" / "pools" / f"pick_place_{ROBOT}" / "work" / "shapes"
 BLOCK_ROLLOUTS, WHOLE_TASKS = 100, 20
 
 
@@ -79,3 +81,21 @@ def test_whole_task_rollouts_reproduce_in_any_order_process_and_on_ray():
     successes = sum("SequenceOutcome(success=True" in outcome for outcome in first)
     assert 0 < successes < WHOLE_TASKS  # the spread reaches both outcomes: a comparison that can differ
     assert isinstance(built, SequenceRollouts)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["sort", "stack", "handover"])
+def test_whole_runs_of_the_learned_trees_reproduce_in_any_order_in_processes_and_on_ray(name):
+    entry = task(name)
+    config = TreeEpisodesConfig(name, str(ROOT / "examples" / "trees" / f"{name}_learned.yaml"), ROBOT)
+    rng = np.random.default_rng(541)
+    # the task's values as a run draws them (boxes apart), then the run's seed (the slip, the masses)
+    taus = np.array([[*entry.draw(ROBOT, rng), rng.integers(0, 2**31)] for _ in range(WHOLE_TASKS)])
+    thetas = np.empty((WHOLE_TASKS, 0))
+    # the local worker processes, two chunks in order; Ray, reversed, in chunks of three
+    first = outcomes(config.build().evaluate(thetas, taus))
+    back = slice(None, None, -1)
+    on_ray = outcomes(evaluate_on_ray(config, thetas[back], taus[back], chunk_size=3))[back]
+    assert on_ray == first
+    assert len(set(first)) == WHOLE_TASKS and all(EpisodeOutcome.__name__ in outcome for outcome in first)
+    assert all("warnings=()" in outcome for outcome in first)  # none in the worker processes either

@@ -206,3 +206,19 @@ def test_feasible_is_the_reference_check_evaluate_makes_before_it_simulates(task
     reference_failures = ("the reference", "never released", "theta contains NaN")
     for ok, detail in zip(feasible, details, strict=True):
         assert ok != (detail.failure is not None and detail.failure.startswith(reference_failures)), detail
+
+
+def test_the_aim_refines_a_missing_throw_and_keeps_it_only_beyond_the_noise():
+    """At a corner target the template's throw misses by 0.35 m (more than the aim's 0.25): the leaf
+    refines it in simulation, throws the template's and the best once more (the throws reproduce: noise 0)
+    and keeps the best, which gained; its message says so."""
+    from besman.tasks.running import prepare
+
+    prepared = prepare("throwing", values={"target": np.array([-1.1, 0.9])})
+    prepared.runner.run()
+    aim = next(node for node in prepared.runner.root.iterate() if node.name == "aim")
+    assert aim.acceptance.noise == 0.0 and aim.acceptance.evaluations == 2
+    assert aim.acceptance.accepted and aim.acceptance.improvement > 0
+    assert aim.expected_miss < 0.25 and aim.rollouts == 20
+    assert "misses by 0.35 m; after 20 simulated throws: 0.21 m" in aim.feedback_message
+    assert "noise 0 over 2 evaluations: kept" in aim.feedback_message

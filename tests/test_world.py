@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from besman.core.errors import UnknownNameError
-from besman.sim.faults import FaultMonitor
+from besman.sim.faults import FaultMonitor, counted_warnings
 from besman.sim.world import GraspableObject, tabletop_world
 from besman.tasks.throwing.world import throwing_world
 
@@ -102,5 +102,6 @@ def test_fault_monitor_reports_nan_divergence_warnings_and_ranges():
     data.qfrc_applied[0] = 1e30  # an impossible force: MuJoCo warns of a bad acceleration and resets
     mujoco.mj_step(model, data)
     assert monitor.check(data).startswith("mujoco warning BADQACC")
+    assert counted_warnings(data) == ("BADQACC: 1",)
     monitor.reset(data)
     assert monitor.check(data) is None, "old warnings are forgotten after reset()"

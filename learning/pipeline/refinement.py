@@ -29,7 +29,7 @@ from besman.learning.pipeline.record import (
     write_json,
 )
 from besman.learning.pipeline.retargeting import fit_workspace_map, retarget
-from besman.learning.search.acceptance import judge
+from besman.learning.search.acceptance import reevaluated
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.learning.segmentation.demonstration import Demonstration
 from besman.learning.segmentation.labelling import DemonstrationSegment
@@ -260,10 +260,12 @@ def _refine_task(
     result = policy_search(objective, [search], budget=settings.budget)[0]
     best = theta0.copy()
     best[weights] = result.best_theta
-    again = task.evaluate(
-        np.repeat([theta0, best], REPEATS, axis=0), np.tile(tau, (2 * REPEATS, 1)), backend=settings.backend
-    ).rewards
-    acceptance = judge(again[:REPEATS], again[REPEATS:])
+    acceptance = reevaluated(
+        lambda thetas: task.evaluate(thetas, tau, backend=settings.backend).rewards,
+        theta0,
+        best,
+        REPEATS,
+    )
     kept = best if acceptance.accepted else theta0
     return {
         "tau": [float(v) for v in tau],

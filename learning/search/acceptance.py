@@ -10,6 +10,7 @@ that reproduce bit for bit (no perturbations) have noise 0: any gain is accepted
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -30,6 +31,14 @@ class Acceptance:
     def to_json(self) -> dict:
         return asdict(self)
 
+    def text(self) -> str:
+        """The verdict in one phrase, e.g. ``reward gained 0.12, noise 0 over 2 evaluations: kept``."""
+        verdict = "kept" if self.accepted else "not kept"
+        return (
+            f"reward gained {self.improvement:.3g}, noise {self.noise:.3g} over {self.evaluations} "
+            f"evaluations: {verdict}"
+        )
+
 
 def judge(start_rewards, refined_rewards) -> Acceptance:
     """The verdict on a refined theta from the start's and its rewards on the same evaluations (paired)."""
@@ -45,3 +54,18 @@ def judge(start_rewards, refined_rewards) -> Acceptance:
     improvement = float(np.mean(refined - start))
     noise = float(np.std(start, ddof=1)) if len(start) > 1 else 0.0
     return Acceptance(improvement, noise, len(start), improvement > noise)
+
+
+def reevaluated(
+    evaluate: Callable[[np.ndarray], np.ndarray],
+    start,
+    best,
+    repeats: int,
+    searched: tuple[float, float] | None = None,
+) -> Acceptance:
+    """The verdict on a search's ``best`` theta against its ``start``: both evaluated ``repeats`` times more
+    in one batch (``evaluate(thetas) -> rewards``, the same rollouts for each), with the search's own
+    rewards of them (``searched``: the start's, the best's) as one more paired evaluation if given."""
+    again = np.asarray(evaluate(np.repeat([start, best], repeats, axis=0)), dtype=float)
+    before, after = ([searched[0]], [searched[1]]) if searched is not None else ([], [])
+    return judge([*before, *again[:repeats]], [*after, *again[repeats:]])

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from besman.learning.search.acceptance import Acceptance, judge
+from besman.learning.search.acceptance import Acceptance, reevaluated
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.sim.block_simulation import BlockStart, Reward, rollout
 from besman.sim.world import World
@@ -92,8 +92,13 @@ def refine_online(
     spread = np.sqrt(np.maximum(np.diag(covariance)[mask], 1e-12))
     search = make_optimizer(optimizer, WarmStart(mean[mask], spread), seed=seed, population_size=POPULATION)
     result = policy_search(objective, [search], budget=max(1, budget - 1 - 2 * REPEATS))[0]
-    again = objective(np.repeat([mean[mask], result.best_theta], REPEATS, axis=0), np.zeros(2 * REPEATS))
-    acceptance = judge([result.start_reward, *again[:REPEATS]], [result.best_reward, *again[REPEATS:]])
+    acceptance = reevaluated(
+        lambda thetas: objective(thetas, np.zeros(len(thetas))),
+        mean[mask],
+        result.best_theta,
+        REPEATS,
+        (result.start_reward, result.best_reward),
+    )
     chosen = result.best_theta if acceptance.accepted else mean[mask]
     theta = mean.copy()
     theta[mask] = chosen

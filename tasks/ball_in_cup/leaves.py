@@ -5,8 +5,9 @@ swing.
   template there: Theta(tau) is the swing, Omega(tau) the template's uncertainty (Metzen et al. 2014). Where
   the template's own swing would not catch the ball in simulation (the task's rollouts, apart from the
   running simulation), the leaf refines it by CMA-ES started from N(Theta(tau), Omega(tau)) (population
-  ``population``) until a simulated swing catches or ``budget`` swings are spent. It writes the swing's
-  parameters (role ``swing``).
+  ``population``) until a simulated swing catches or ``budget`` swings are spent; the template's swing and
+  the best are swung once more, and the best is kept only where it gained more than the reward's noise
+  (:mod:`~besman.learning.search.acceptance`). It writes the swing's parameters (role ``swing``).
 - :class:`Swing` executes the swing in the running simulation
   (:class:`~besman.tasks.ball_in_cup.executor.CatchExecutor`), RUNNING while the arm swings and the ball flies
   and settles, and writes where the ball ended in the cup's frame (role ``ball``); it succeeds if the ball is
@@ -28,11 +29,14 @@ from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
 from besman.core.validation import SEED
+from besman.learning.search.acceptance import Acceptance, reevaluated
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.sim.motions import MotionStatus
 from besman.tasks.ball_in_cup.executor import CatchExecutor
 from besman.trees.base import SimulationBehaviour
 from besman.trees.manipulation import TEMPLATE_PARAMETERS
+
+REPEATS = 1  # the template's and the best swing swung again in simulation: the reward's noise
 
 
 def _catching(name: str, executor) -> CatchExecutor:
@@ -76,6 +80,7 @@ class AimSwing(SimulationBehaviour):
         self.instantiated: tuple | None = None  # (template, tau) of the last aim, for viewers
         self.rollouts = 0  # simulated swings of the last aim
         self.expected: bool | None = None  # whether the chosen swing catches in simulation
+        self.acceptance: Acceptance | None = None  # the last aim's refinement's verdict (None: none ran)
         self.use("string")
         self.use("swing")
 
@@ -92,8 +97,13 @@ class AimSwing(SimulationBehaviour):
         except ValueError as error:
             self.feedback_message = f"string {tau.tolist()}: {error}"
             return Status.FAILURE
-        (predicted,) = task.evaluate(mean[None], tau[None]).details
-        best, caught, self.rollouts = mean, predicted.success, 1
+
+        def swings(thetas: np.ndarray) -> np.ndarray:
+            return task.evaluate(thetas, tau).rewards
+
+        evaluation = task.evaluate(mean[None], tau)
+        (predicted,), (predicted_reward,) = evaluation.details, evaluation.rewards
+        best, caught, self.rollouts, self.acceptance = mean, predicted.success, 1, None
         if not caught and self.budget > 0:
             search = make_optimizer(
                 "cmaes",
@@ -102,21 +112,25 @@ class AimSwing(SimulationBehaviour):
                 population_size=min(self.population, self.budget),
             )
             (result,) = policy_search(
-                lambda thetas, _: task.evaluate(thetas, np.repeat(tau[None], len(thetas), axis=0)).rewards,
+                lambda thetas, _: swings(thetas),
                 [search],
                 budget=self.budget,
                 evaluate_start=False,
                 target_reward=1e-9,  # every catch scores > 0, every miss <= 0
             )
-            self.rollouts += len(result.rewards)
-            if result.best_reward > 0:
-                best, caught = result.best_theta, True
+            self.acceptance = reevaluated(
+                swings, mean, result.best_theta, REPEATS, (predicted_reward, result.best_reward)
+            )
+            self.rollouts += len(result.rewards) + 2 * REPEATS
+            if self.acceptance.accepted:
+                best, caught = result.best_theta, result.best_reward > 0
         self.expected = caught
         self.instantiated = (self.template, tau)
         self.blackboard.set("swing", best, overwrite=True)
+        refined = "" if self.acceptance is None else f" (the refinement's {self.acceptance.text()})"
         self.feedback_message = (
             f"template at {tau[0]:.3f} m: {'catches' if predicted.success else 'misses'} in simulation; "
-            f"after {self.rollouts} simulated swings: {'catches' if caught else 'still misses'}"
+            f"after {self.rollouts} simulated swings: {'catches' if caught else 'still misses'}{refined}"
         )
         return Status.SUCCESS
 

@@ -4,8 +4,10 @@
   there: Theta(tau) is the throw, Omega(tau) the template's uncertainty (Metzen et al. 2014). Where the
   template's own throw would miss by more than ``accept`` m in simulation, the leaf refines it as the paper
   does, by CMA-ES started from N(Theta(tau), Omega(tau)) on simulated throws (the task's rollouts, apart
-  from the running simulation) until one lands within ``accept`` or ``budget`` throws are spent. It writes
-  the throw's parameters (role ``throw``).
+  from the running simulation) until one lands within ``accept`` or ``budget`` throws are spent; the
+  template's throw and the best are thrown once more, and the best is kept only where it gained more than
+  the reward's noise (:mod:`~besman.learning.search.acceptance`). It writes the throw's parameters (role
+  ``throw``).
 - :class:`Throw` executes the throw in the running simulation
   (:class:`~besman.tasks.throwing.executor.ThrowingExecutor`), RUNNING while the ball flies, and writes where
   it landed (role ``landing``); it succeeds if the ball lands within ``tolerance`` m of the ``target``.
@@ -26,11 +28,14 @@ from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
 from besman.core.validation import SEED
+from besman.learning.search.acceptance import Acceptance, reevaluated
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.sim.motions import MotionStatus
 from besman.tasks.throwing.executor import ThrowingExecutor
 from besman.trees.base import SimulationBehaviour
 from besman.trees.manipulation import TEMPLATE_PARAMETERS
+
+REPEATS = 1  # the template's and the best throw thrown again in simulation: the reward's noise
 
 
 def _throwing(name: str, executor) -> ThrowingExecutor:
@@ -67,6 +72,7 @@ class AimThrow(SimulationBehaviour):
         self.instantiated: tuple | None = None  # (template, tau) of the last aim, for viewers
         self.rollouts = 0  # simulated throws of the last aim
         self.expected_miss: float | None = None  # m, of the chosen throw in simulation
+        self.acceptance: Acceptance | None = None  # the last aim's refinement's verdict (None: none ran)
         self.use("target")
         self.use("throw")
 
@@ -83,28 +89,36 @@ class AimThrow(SimulationBehaviour):
         except ValueError as error:
             self.feedback_message = f"target {tau.tolist()}: {error}"
             return Status.FAILURE
-        (predicted,) = task.evaluate(mean[None], tau[None]).rewards
-        best, reward, self.rollouts = mean, predicted, 1
+
+        def throws(thetas: np.ndarray) -> np.ndarray:
+            return task.evaluate(thetas, tau).rewards
+
+        (predicted,) = throws(mean[None])
+        best, reward, self.rollouts, self.acceptance = mean, predicted, 1, None
         if -reward > self.accept**2 and self.budget > 0:
             search = make_optimizer("cmaes", WarmStart(mean, covariance), seed=self.seed)
             (result,) = policy_search(
-                lambda thetas, _: task.evaluate(thetas, np.repeat(tau[None], len(thetas), axis=0)).rewards,
+                lambda thetas, _: throws(thetas),
                 [search],
                 budget=self.budget,
                 evaluate_start=False,
                 target_reward=-(self.accept**2),
             )
-            self.rollouts += len(result.rewards)
-            if result.best_reward > reward:
+            self.acceptance = reevaluated(
+                throws, mean, result.best_theta, REPEATS, (predicted, result.best_reward)
+            )
+            self.rollouts += len(result.rewards) + 2 * REPEATS
+            if self.acceptance.accepted:
                 best, reward = result.best_theta, result.best_reward
         self.expected_miss = float(np.sqrt(-reward)) if reward > -1000 else None
         self.instantiated = (self.template, tau)
         self.blackboard.set("throw", best, overwrite=True)
         predicted_miss = "no landing" if predicted <= -1000 else f"{np.sqrt(-predicted):.2f} m"
         expected = "no landing" if self.expected_miss is None else f"{self.expected_miss:.2f} m"
+        refined = "" if self.acceptance is None else f" (the refinement's {self.acceptance.text()})"
         self.feedback_message = (
             f"template at {np.round(tau, 2).tolist()}: misses by {predicted_miss}; "
-            f"after {self.rollouts} simulated throws: {expected}"
+            f"after {self.rollouts} simulated throws: {expected}{refined}"
         )
         return Status.SUCCESS
 
