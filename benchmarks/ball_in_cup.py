@@ -18,7 +18,7 @@ Everything is seeded and the rollouts are deterministic: the same command prints
 default run takes about 25 s on two cores.
 
 The skill template over the string length (K = 10 training lengths, zero shot and after <= 10 more rollouts
-on the held-out lengths, learning curves and plots) is ``python -m besman.experiments.ball_in_cup``
+on the held-out lengths, learning curves and plots) is ``besman experiment ball-in-cup``
 (``docs/ball_in_cup.md``).
 """
 

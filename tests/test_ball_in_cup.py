@@ -359,10 +359,10 @@ def test_the_demo_catches_the_ball_by_the_tasks_rule(leaves, seed, capsys):
 
 @pytest.mark.slow
 def test_the_experiments_quick_run_writes_json_and_plots(tmp_path):
-    from besman.experiments.ball_in_cup import main
+    from besman.cli import main
 
     out = tmp_path / "results.json"
-    main(["--quick", "--out", str(out), "--pool", str(tmp_path / "pool")])
+    assert main(["experiment", "ball-in-cup", "--quick", "--out", str(tmp_path), "--pool", "pool"]) == 0
     results = json.loads(out.read_text())
     assert results["experiment"] == "ball_in_cup" and results["config"]["k"] == 4
     summary = results["summary"]

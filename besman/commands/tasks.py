@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from besman.commands.options import COUNT
+from besman.core.errors import InputError
 
 
 def _tasks_list(args: argparse.Namespace) -> int:
@@ -64,6 +66,24 @@ def _experiment_throwing(args: argparse.Namespace) -> int:
     return 0
 
 
+def _experiment_ball_in_cup(args: argparse.Namespace) -> int:
+    from besman.core.storage import check_output, write_atomically
+    from besman.experiments.ball_in_cup import Config, Experiment, report
+    from besman.experiments.ball_in_cup_plots import plot
+
+    out = Path(args.out)
+    written = check_output(out / "results.json", option="--out", suffixes=(".json",))
+    if args.pool is not None and Path(args.pool).exists() and not Path(args.pool).is_dir():
+        raise InputError(f"--pool {args.pool}: a file, not a pool's folder")
+    config = Config.quick() if args.quick else Config()
+    results = Experiment(config, progress=True).run(None if args.pool is None else Path(args.pool))
+    write_atomically(written, (json.dumps(results, indent=1) + "\n").encode())
+    figures = plot(results, out)
+    print(json.dumps(results, indent=1) if args.json else report(results))
+    print(f"wrote {written}, " + ", ".join(figure.name for figure in figures), file=sys.stderr)
+    return 0
+
+
 def _rounded(value):
     """Numbers to three significant digits, also inside the per-K tables of the acceptance."""
     if isinstance(value, float):
@@ -110,3 +130,15 @@ def register(commands) -> None:
     )
     throwing.add_argument("--out", required=True, help="the results directory (an interrupted run resumes)")
     throwing.set_defaults(handler=_experiment_throwing)
+    ball_in_cup = experiment_commands.add_parser(
+        "ball-in-cup",
+        help="ball in a cup on the UR5e: the scripted baseline, CMA-ES from the demonstration, the skill "
+        "template over the string's length (results.json, two plots)",
+    )
+    ball_in_cup.add_argument(
+        "--quick", action="store_true", help="a small run (K up to 4, 8 held-out lengths; about 30 s)"
+    )
+    ball_in_cup.add_argument("--out", required=True, help="the results directory")
+    ball_in_cup.add_argument("--pool", help="store seed 0's template of all K training tasks in this pool")
+    ball_in_cup.add_argument("--json", action="store_true", help="print results.json to stdout")
+    ball_in_cup.set_defaults(handler=_experiment_ball_in_cup)

@@ -1,7 +1,7 @@
 """Ball-in-a-cup learned: one string length from the demonstration, then a skill template over the length.
 
-    python -m besman.experiments.ball_in_cup [--quick] [--json] [--out docs/results/ball_in_cup/results.json]
-                                             [--pool examples/pools/ball_in_cup]
+    besman experiment ball-in-cup --out docs/results/ball_in_cup [--quick] [--json]
+                                  [--pool examples/pools/ball_in_cup]
 
 The protocol, every setting fixed before the run and none chosen on the held-out lengths:
 
@@ -59,8 +59,7 @@ a pool (JSON and NPZ, with provenance; no pickle).
 
 from __future__ import annotations
 
-import argparse
-import json
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -163,7 +162,7 @@ class Experiment:
 
     def say(self, text: str) -> None:
         if self.progress:
-            print(f"[{time.strftime('%H:%M:%S')}] {text}", flush=True)
+            print(f"[{time.strftime('%H:%M:%S')}] {text}", file=sys.stderr, flush=True)
 
     def evaluate(self, thetas, taus, what: str):
         thetas = np.array(thetas, dtype=float, ndmin=2)
@@ -325,6 +324,7 @@ class Experiment:
     def template(self, training: dict, k: int, seed: int) -> tuple[SkillTemplate, list[float]]:
         taus, thetas = training["taus"][:k], training["thetas"][:k]
         kernel, losses = self.choose_kernel(taus, thetas)
+        quick = " --quick" if self.config == Config.quick() else ""
         prototype = MovementPrimitive(self.task.dmp, TEMPLATE, robot="ur5e", group="arm")
         template = SkillTemplate(
             TEMPLATE,
@@ -337,7 +337,7 @@ class Experiment:
             task="ball-in-cup",
             provenance={
                 "experiment": "besman.experiments.ball_in_cup",
-                "command": "python -m besman.experiments.ball_in_cup --pool examples/pools/ball_in_cup",
+                "command": f"besman experiment ball-in-cup{quick}",
                 "seed": seed,
                 "training_tasks": k,
                 "training_lengths_m": np.round(taus[:, 0], 4).tolist(),
@@ -499,28 +499,7 @@ def report(results: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="the small run (about a minute)")
-    parser.add_argument("--json", action="store_true", help="print results.json to stdout")
-    parser.add_argument(
-        "--out", type=Path, default=None, help="write results.json here (and the plots next to it)"
-    )
-    parser.add_argument("--pool", type=Path, default=None, help="store seed 0's template of all K tasks here")
-    parser.add_argument("--no-plots", action="store_true")
-    parser.add_argument("--progress", action="store_true")
-    args = parser.parse_args(argv)
-    config = Config.quick() if args.quick else Config()
-    results = Experiment(config, progress=args.progress).run(args.pool)
-    if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(results, indent=1) + "\n")
-        if not args.no_plots:
-            from besman.experiments.ball_in_cup_plots import plot
+if __name__ == "__main__":  # the command is besman experiment ball-in-cup
+    from besman.cli import main
 
-            plot(results, args.out.parent)
-    print(json.dumps(results, indent=1) if args.json else report(results))
-
-
-if __name__ == "__main__":
-    main()
+    raise SystemExit(main(["experiment", "ball-in-cup", *sys.argv[1:]]))
