@@ -497,9 +497,3 @@ def report(results: dict) -> str:
     )
     lines.append(f"rollouts {results['rollouts']}, {results['minutes']} min")
     return "\n".join(lines)
-
-
-if __name__ == "__main__":  # the command is besman experiment ball-in-cup
-    from besman.cli import main
-
-    raise SystemExit(main(["experiment", "ball-in-cup", *sys.argv[1:]]))
