@@ -1,10 +1,12 @@
 """Joint references from movement primitives: what an arm's executor tracks, sampled at the control rate.
 
 A joint-space primitive starts in the given joint state (the moving-goal DMP takes any start state, so a
-primitive can begin while the arm still moves). A Cartesian primitive starts at the site's pose at rest and
-is turned into joints by inverse kinematics at knots every ``knot_period`` (each solved from the previous
-knot's solution), joined by a clamped cubic spline whose derivatives are the reference's velocities and
-accelerations - free of the noise that differencing IK solutions would amplify.
+primitive can begin while the arm still moves), its acceleration included (:func:`started`), and a learned
+one ends at rest at its goal (:func:`at_rest_at_goal`). A Cartesian
+primitive starts at the site's pose at rest and is turned into joints by inverse kinematics at knots every
+``knot_period`` (each solved from the previous knot's solution), joined by a clamped cubic spline whose
+derivatives are the reference's velocities and accelerations - free of the noise that differencing IK
+solutions would amplify.
 
 A reference faster than the joints' velocity, acceleration or jerk limits is slowed down by lengthening
 the DMP's execution time (which keeps the path) by the factor the worst joint needs, up to ``max_slowdown``
@@ -20,9 +22,15 @@ import numpy as np
 
 from besman.core.errors import InputError
 from besman.sim.arm import Arm
-from besman.skills import CartesianDMP, MovementPrimitive, Trajectory
+from besman.skills import DMP, CartesianDMP, MovementPrimitive, Trajectory
+from besman.skills.transformation import moving_goal_basis
 
 SLOWDOWN_MARGIN = 1.02  # slow down a little more than the worst joint needs: the limits are then met
+# The durations tried for a learned movement's stop at its goal (at_rest_at_goal), shortest first: up to 1 s.
+SETTLE_DURATIONS = np.arange(0.02, 1.0 + 1e-9, 0.02)
+# A reference this close to its goal at rest (rad, rad/s, rad/s^2) has arrived: a point-to-point movement
+# ends 1e-15 off (rounding), and a stop that small would only trouble Ruckig (a move of 1e-11 in ~1e-11 s).
+AT_GOAL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -68,17 +76,75 @@ def joint_reference(
         if isinstance(dmp, CartesianDMP):
             reference = _cartesian_reference(arm, dmp, state[0], settings)
         else:
-            dmp.configure(
-                start=state[0], start_velocity=state[1], start_acceleration=state[2], dt=settings.period
-            )
-            reference = dmp.trajectory()
+            reference = started(dmp, state, settings.period)
         factor = arm.slowdown(
             reference.positions, reference.velocities, reference.accelerations, settings.period
         )
         if factor <= 1.0 or total * factor > settings.max_slowdown:
-            return reference
+            return reference if isinstance(dmp, CartesianDMP) else at_rest_at_goal(reference, dmp, arm)
         total *= factor * SLOWDOWN_MARGIN
         dmp.execution_time = dmp.execution_time * factor * SLOWDOWN_MARGIN
+
+
+def started(dmp: DMP, state: tuple[np.ndarray, np.ndarray, np.ndarray], period: float) -> Trajectory:
+    """The trajectory of the joint-space ``dmp`` started in ``state`` (position, velocity, acceleration),
+    sampled every ``period`` s, its acceleration continuous there. The forcing term's response starts with
+    an acceleration of its own (f at the phase's start), which would jump the reference away from the
+    state's acceleration - an unbounded jerk at the start of every learned movement; it is taken out of the
+    moving goal's start acceleration instead (the trajectory is linear in it, and at t = 0 the goal's
+    acceleration is the whole of it), so the reference begins exactly in ``state``."""
+    dmp.configure(start=state[0], start_velocity=state[1], start_acceleration=state[2], dt=period)
+    reference = dmp.trajectory()
+    jump = reference.accelerations[0] - state[2]
+    if not jump.any():  # no forcing term at the start
+        return reference
+    dmp.configure(start_acceleration=state[2] - jump)
+    return dmp.trajectory()
+
+
+def at_rest_at_goal(reference: Trajectory, dmp: DMP, arm: Arm) -> Trajectory:
+    """``reference`` (of ``dmp``, sampled every ``dmp.dt``) ending at rest at the DMP's goal. The forcing
+    term's response has not died out at the execution time, so a learned movement ends a little off its goal
+    and still moving; left so, the executor would brake it to rest at the joints' jerk limits. A quintic
+    from its last state to the goal at rest is appended instead, as short as keeps the stop's jerk within
+    the movement's own peak between its first and its last tenth (and the joints' velocity and acceleration
+    limits): a stop no harsher than the movement's middle. A reference already at rest at its goal (a
+    point-to-point movement) and a movement meant to end moving (a goal velocity) are left as they are."""
+    position, velocity, acceleration = (
+        reference.positions[-1],
+        reference.velocities[-1],
+        reference.accelerations[-1],
+    )
+    residual = max(np.abs(position - dmp.goal).max(), np.abs(velocity).max(), np.abs(acceleration).max())
+    if dmp.goal_velocity.any() or residual <= AT_GOAL:
+        return reference
+    period = dmp.dt
+    jerk = np.abs(np.diff(reference.accelerations, axis=0)).max(axis=1) / period
+    own_peak = jerk[len(jerk) // 10 : -len(jerk) // 10 or None].max()  # between its start and its end
+    for duration in SETTLE_DURATIONS:
+        steps = max(1, round(duration / period))
+        duration = steps * period
+        shape = moving_goal_basis(np.arange(1, steps + 1) / steps)
+        boundary = np.stack(
+            [position, duration * velocity, duration**2 * acceleration, dmp.goal, 0 * position, 0 * position]
+        )
+        positions, velocities, accelerations = (
+            (basis @ boundary) / duration**order for order, basis in enumerate(shape)
+        )
+        jerk = np.abs(np.diff(np.vstack([acceleration, accelerations]), axis=0)).max() / period
+        if (
+            jerk <= own_peak
+            and (np.abs(velocities) <= arm.max_velocity).all()
+            and (np.abs(accelerations) <= arm.max_acceleration).all()
+        ):
+            break
+    times = reference.times[-1] + period * np.arange(1, steps + 1)
+    return Trajectory(
+        np.r_[reference.times, times],
+        np.vstack([reference.positions, positions]),
+        np.vstack([reference.velocities, velocities]),
+        np.vstack([reference.accelerations, accelerations]),
+    )
 
 
 def at_rest(position: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -97,8 +163,7 @@ def hand_path(
     if isinstance(dmp, CartesianDMP):
         _start_cartesian(dmp, arm, state[0], period)
         return dmp.trajectory().positions
-    dmp.configure(start=state[0], start_velocity=state[1], start_acceleration=state[2], dt=period)
-    return arm.site_path(dmp.trajectory().positions)
+    return arm.site_path(at_rest_at_goal(started(dmp, state, period), dmp, arm).positions)
 
 
 def _start_cartesian(dmp: CartesianDMP, arm: Arm, start: np.ndarray, period: float) -> None:

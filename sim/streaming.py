@@ -19,6 +19,7 @@ WORKING = (ruckig.Result.Working, ruckig.Result.Finished)
 # s: the longest trajectory Ruckig computes; longer, it returns a result (-101) its Python binding cannot
 # name (a ValueError).
 LONGEST = 7.6e3
+ARRIVED = 1e-9  # rad (m), per s, per s^2: a commanded state this close to its target has reached it
 
 
 class JerkLimitedStream:
@@ -151,12 +152,35 @@ class JerkLimitedStream:
         try:
             result = self._otg.update(inputs, output)
         except ruckig.RuckigError:  # raised for inputs it rejects: the caller fails the motion (refusal)
-            return ruckig.Result.ErrorInvalidInput
+            result = ruckig.Result.ErrorInvalidInput
         except ValueError:  # a trajectory longer than LONGEST
-            return ruckig.Result.ErrorExecutionTimeCalculation
+            result = ruckig.Result.ErrorExecutionTimeCalculation
         if result in WORKING:
             output.pass_to_input(inputs)
+        elif self._arrived():
+            # Ruckig refuses or cannot time a move that is only rounding (a speed of 1e-11 at the target
+            # position, say): the target is reached already.
+            inputs.current_position = list(inputs.target_position)
+            inputs.current_velocity = list(inputs.target_velocity)
+            inputs.current_acceleration = list(inputs.target_acceleration)
+            return ruckig.Result.Finished
         return result
+
+    def _arrived(self) -> bool:
+        """Whether a position target is the commanded state but for rounding (:data:`ARRIVED`)."""
+        inputs = self._input
+        if inputs.control_interface != ruckig.ControlInterface.Position:
+            return False
+        pairs = (
+            (inputs.current_position, inputs.target_position),
+            (inputs.current_velocity, inputs.target_velocity),
+            (inputs.current_acceleration, inputs.target_acceleration),
+        )
+        return all(
+            abs(now - wanted) <= ARRIVED
+            for current, target in pairs
+            for now, wanted in zip(current, target, strict=True)
+        )
 
     def refusal(self, joints) -> str:
         """Why Ruckig refused the last update (named by ``joints``), found by checking its input against the

@@ -1,6 +1,9 @@
 """The Ruckig executor and its motions: limits, continuity, pre-emption, Cartesian references, grasps and
 faults."""
 
+import copy
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -18,6 +21,7 @@ from besman.sim.references import joint_reference
 from besman.sim.world import tabletop_world
 from besman.skills import DMP, MovementPrimitive
 
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 # A move of the waist and right arm from the home pose that stays in range and clear of the table.
 SAFE_MOVE = np.array([0.3, -0.3, -0.3, 0.5, -0.5, 0.4, 0.3, 0.4])
 
@@ -237,3 +241,63 @@ def test_a_margin_makes_the_furniture_near_the_moving_arm_a_collision(executor):
     near = arm.collisions(home, margin=0.3)
     assert near and all(hit.split("/")[1] in ("table", "shelf") for hit in near), near
     assert not any("Rover_base" in hit for hit in arm.collisions(home, margin=0.05))
+
+
+def test_a_target_reached_but_for_rounding_is_arrived_at_not_refused():
+    """Ruckig refuses a target 2e-11 rad from the command when the command still moves by rounding (6e-12
+    rad/s; the state in which a UR5e retreat that ended at rest exactly failed); the stream takes it as
+    reached. A real move is still Ruckig's."""
+    from besman.sim.streaming import JerkLimitedStream
+
+    stream = JerkLimitedStream([-6.2] * 6, [6.2] * 6, [3.1416] * 6, [8.0] * 6, [80.0] * 6, 0.002)
+    target = [-2.651940013943532, -1.507511814202158, 1.694936933966313, -1.758221624293953]
+    target += [-1.5707963155051128, -1.5781497098899167]
+    stream.reset([*target[:5], -1.5781497098727244])
+    stream._input.current_velocity = [
+        -6.354e-22,
+        -1.03e-18,
+        9.48e-19,
+        4.135e-19,
+        1.4e-22,
+        5.730641224584909e-12,
+    ]
+    stream._input.current_acceleration = [-3.26e-20, 3.25e-19, -2.0e-17, 1.97e-17, 3.78e-21, -3.26e-20]
+    assert stream.track(target).name == "Finished"
+    assert stream.state_lists() == (target, [0.0] * 6, [0.0] * 6)
+    assert stream.track([t + 0.5 for t in target]).name == "Working"
+    assert 0.0 < stream.position[0] - target[0] < 1e-3
+
+
+def test_a_learned_movement_starts_in_the_commanded_state_and_ends_at_rest_at_its_goal(executor):
+    """A DMP with a forcing term (AILA's learned reach, between other end points) starts with an acceleration
+    of its own and has not settled at its execution time: its reference starts in the arm's state (no step
+    in acceleration: an unbounded jerk) and ends at rest exactly at its goal, by a stop no harsher than the
+    movement's middle; it runs within every limit."""
+    from besman.sim.primitives import shaped
+
+    dofs = executor.arm.dofs
+    reach = MovementPrimitive.load(EXAMPLES / "pools" / "pick_place_aila" / "work" / "shapes" / "reach.json")
+    shape = shaped(reach, "learned", executor.position, executor.position + 0.5 * SAFE_MOVE, executor.arm)
+    dmp = shape.dmp
+    free = copy.deepcopy(dmp)
+    free.configure(start=executor.position, start_velocity=0.0, start_acceleration=0.0, dt=0.002)
+    own = free.trajectory()
+    assert np.abs(own.accelerations[0]).max() > 1.0  # the forcing term's start
+    assert np.abs(own.velocities[-1]).max() > 1e-3  # and its end, still moving
+    reference = _reference(executor, shape)
+    np.testing.assert_allclose(reference.accelerations[0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(reference.positions[-1], dmp.goal, atol=1e-12)
+    np.testing.assert_allclose(reference.velocities[-1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(reference.accelerations[-1], 0.0, atol=1e-12)
+    jerk = np.abs(np.diff(reference.accelerations, axis=0)).max(axis=1) / 0.002
+    middle = jerk[len(own.times) // 10 : len(own.times) - len(own.times) // 10].max()
+    assert jerk[len(own.times) :].max() <= middle  # the stop
+    assert jerk[0] < 0.1 * np.abs(own.accelerations[0]).max() / 0.002  # no step
+    motion = executor.run(FollowReference("learned", reference=reference))
+    assert motion.status is MotionStatus.SUCCEEDED, motion.message
+    assert limit_violations(executor.log, executor) == []
+    # A point-to-point movement (no forcing term) is its own DMP trajectory, untouched.
+    plain = MovementPrimitive(
+        DMP(dofs, execution_time=1.5, goal=executor.position + 0.3 * SAFE_MOVE), "plain"
+    )
+    np.testing.assert_array_equal(_reference(executor, plain).positions, plain.dmp.trajectory().positions)
