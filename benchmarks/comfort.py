@@ -104,18 +104,17 @@ HUMAN = {"reach": "approach_right", "carry": "move_obj_shelf", "after": "move_to
 def episode(arguments: tuple) -> dict:
     """One run of a tree on a task: success and the measures of the module documentation."""
     from besman.sim.block_simulation import hand_measures
+    from besman.tasks.episodes import MotionTrail
     from besman.tasks.running import run
 
     tree, robot, tau, seed, perturb = arguments
-    seen: list[tuple] = []  # (motion, its first row in the log), in the order they ran
+    trail = MotionTrail()
     found: dict = {}
 
     def observe(runner, record) -> None:
         found.setdefault("runner", runner)
         found.setdefault("start", record["time"])
-        motion = runner.executor.motion
-        if motion is not None and (not seen or seen[-1][0] is not motion):
-            seen.append((motion, len(runner.executor.log) - motion.cycles))
+        trail(runner, record)
 
     summary = run(
         "pick-place",
@@ -128,7 +127,10 @@ def episode(arguments: tuple) -> dict:
     )
     executor = found["runner"].executor
     log, arm, period = executor.log, executor.arm, executor.config.control_period
-    spans = [(m, first, first + (m.ended if m.status.value != "running" else m.cycles)) for m, first in seen]
+    spans = [
+        (m, first, first + (m.ended if m.status.value != "running" else m.cycles))
+        for m, first in trail.started
+    ]
     names = [m.name for m, _, _ in spans]
     result = {
         "success": bool(summary.success),

@@ -39,16 +39,11 @@ TARGET = 0.95  # the issue's bar for the learned tree's task success on unseen t
 
 def episode(arguments: tuple) -> dict:
     """One run of the learned tree: success, whether the first attempt did it, and the message."""
+    from besman.tasks.episodes import MotionTrail
     from besman.tasks.running import run
 
     tree, robot, tau, seed, mode = arguments
-    moves: list[str] = []
-
-    def count(runner, _record) -> None:
-        motion = runner.executor.motion
-        if motion is not None and (not moves or moves[-1] is not motion):
-            moves.append(motion)
-
+    trail = MotionTrail()
     summary = run(
         "pick-place",
         tree,
@@ -56,11 +51,11 @@ def episode(arguments: tuple) -> dict:
         values=task("pick-place").split(tau),
         seed=seed,
         perturb=mode,
-        observe=count,
+        observe=trail,
     )
-    names = [motion.name for motion in moves]
+    names = [motion.name for motion in trail.motions]
     first = summary.success and names.count("reach") == 1 and names.count("carry") == 1
-    failed = next((m for m in moves if m.status.value == "failed"), None)
+    failed = next((m for m in trail.motions if m.status.value == "failed"), None)
     return {
         "success": bool(summary.success),
         "first_attempt": bool(first),

@@ -20,6 +20,7 @@ import ruckig
 
 from besman.core.errors import InputError
 from besman.sim.arm import Arm
+from besman.sim.references import at_rest, started
 from besman.skills import DMP, CartesianDMP, MovementPrimitive, quaternion
 from besman.skills.transformation import minimum_jerk
 
@@ -190,12 +191,14 @@ def shaped(
 def _keep_in_range(dmp: DMP, arm: Arm) -> None:
     """Scales each joint's forcing weights of ``dmp`` (configured between its end points, at rest at both)
     down to the largest share of its deviation from the direct path that keeps the joint
-    :data:`LIMIT_MARGIN` inside its range (the response is linear in its weights, so the share is
-    exact)."""
+    :data:`LIMIT_MARGIN` inside its range as the executor runs it (:func:`~besman.sim.references.started`;
+    the response is linear in its weights, so the share is exact)."""
     start, goal = dmp.start, dmp.goal
     direct = DMP(arm.dofs, execution_time=dmp.execution_time, dt=dmp.dt, start=start, goal=goal)
     path = direct.trajectory().positions
-    response = dmp.trajectory().positions - path
+    # As executed from rest: the forcing term's start acceleration is taken out of the moving goal's there,
+    # a term linear in the weights too.
+    response = started(copy.deepcopy(dmp), at_rest(start), dmp.dt).positions - path
     room = np.where(response > 0, arm.upper - LIMIT_MARGIN - path, arm.lower + LIMIT_MARGIN - path)
     moves = np.abs(response) > 1e-12
     shares = np.ones(arm.dofs)

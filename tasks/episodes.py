@@ -21,6 +21,25 @@ from besman.skills.task_bounds import TaskBounds
 SEED_RANGE = 2**31
 
 
+class MotionTrail:
+    """An observer of a run (``observe=`` of :func:`~besman.tasks.running.run`) that keeps every motion the
+    executor started, in order, each with the row of the executor's log at which it started: what a run did,
+    for counting its attempts and measuring its motions."""
+
+    def __init__(self) -> None:
+        self.started: list[tuple] = []  # (motion, its first row in the executor's log)
+
+    def __call__(self, runner, _record) -> None:
+        executor = runner.executor
+        motion = executor.motion
+        if motion is not None and (not self.started or self.started[-1][0] is not motion):
+            self.started.append((motion, len(executor.log) - motion.cycles))
+
+    @property
+    def motions(self) -> list:
+        return [motion for motion, _ in self.started]
+
+
 @dataclass(frozen=True)
 class EpisodeOutcome:
     """What one run ended with: the task's judgement and measurements, the motions in the order they ran
@@ -77,13 +96,7 @@ class TreeEpisodes(BatchedRollouts):
         """One run of the tree at ``tau`` (the task's values, then the seed)."""
         from besman.tasks.running import prepare
 
-        motions: list = []
-
-        def follow(runner, _record) -> None:
-            motion = runner.executor.motion
-            if motion is not None and (not motions or motions[-1] is not motion):
-                motions.append(motion)
-
+        trail = MotionTrail()
         prepared = prepare(
             self.task,
             self.config.tree,
@@ -91,7 +104,7 @@ class TreeEpisodes(BatchedRollouts):
             values=self.task.split(tau[:-1]),
             seed=int(tau[-1]),
             perturb=self.config.perturb,
-            observe=follow,
+            observe=trail,
         )
         summary = prepared.judge(prepared.runner.run())
         data = prepared.runner.executor.world.data
@@ -99,7 +112,7 @@ class TreeEpisodes(BatchedRollouts):
             success=summary.success,
             outcome=summary.outcome,
             measurements=summary.measurements,
-            motions=tuple(f"{motion.name}: {motion.status.value}" for motion in motions),
+            motions=tuple(f"{motion.name}: {motion.status.value}" for motion in trail.motions),
             sim_time_s=summary.sim_time_s,
             ticks=summary.ticks,
             failed_node=summary.failed_node,
