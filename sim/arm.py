@@ -18,6 +18,7 @@ import numpy as np
 
 import besman.robots as robots
 from besman.core.validation import checked, finite_array, instance, items, optional, text
+from besman.sim.streaming import ACCELERATION_SHARE, VELOCITY_SHARE
 from besman.sim.world import World
 
 
@@ -215,13 +216,19 @@ class Arm:
         self, positions: np.ndarray, velocities: np.ndarray, accelerations: np.ndarray, period: float
     ):
         """How much slower a joint trajectory sampled every ``period`` must run to respect every limit (1 if
-        it already does): velocity scales with 1/f, acceleration 1/f^2, jerk 1/f^3."""
+        it already does): velocity scales with 1/f, acceleration 1/f^2, jerk 1/f^3. The velocity and
+        acceleration limits are the shares a tracked target may have (``streaming.VELOCITY_SHARE``): a
+        reference at 99.7 % of a speed limit is one the executor falls behind on."""
         jerk = np.abs(np.diff(accelerations, axis=0)).max(axis=0) / period
+        velocity, acceleration = (
+            VELOCITY_SHARE * self.max_velocity,
+            ACCELERATION_SHARE * self.max_acceleration,
+        )
         return float(
             max(
                 1.0,
-                (np.abs(velocities).max(axis=0) / self.max_velocity).max(),
-                np.sqrt(np.abs(accelerations).max(axis=0) / self.max_acceleration).max(),
+                (np.abs(velocities).max(axis=0) / velocity).max(),
+                np.sqrt(np.abs(accelerations).max(axis=0) / acceleration).max(),
                 np.cbrt(jerk / self.max_jerk).max(),
             )
         )

@@ -19,6 +19,9 @@ WORKING = (ruckig.Result.Working, ruckig.Result.Finished)
 # s: the longest trajectory Ruckig computes; longer, it returns a result (-101) its Python binding cannot
 # name (a ValueError).
 LONGEST = 7.6e3
+# The shares of the velocity and acceleration limits a target may have (room to stop accelerating before the
+# velocity limit); a reference meant to be tracked keeps within them (Arm.slowdown).
+VELOCITY_SHARE, ACCELERATION_SHARE = 0.99, 0.999
 ARRIVED = 1e-9  # rad (m), per s, per s^2: a commanded state this close to its target has reached it
 
 
@@ -39,8 +42,8 @@ class JerkLimitedStream:
         self._input.max_jerk = self.max_jerk.tolist()
         # Ruckig accepts a target velocity v only with room to stop accelerating after it, or to have
         # been slowing down to it: |a| <= sqrt(2 j (v_max - |v|)) whichever way a points.
-        self._velocity_bound = 0.99 * self.max_velocity
-        self._acceleration_bound = 0.999 * self.max_acceleration
+        self._velocity_bound = VELOCITY_SHARE * self.max_velocity
+        self._acceleration_bound = ACCELERATION_SHARE * self.max_acceleration
         self.reset(np.clip(np.zeros(self.dofs), self.lower, self.upper))
 
     def reset(self, position) -> None:

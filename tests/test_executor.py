@@ -301,3 +301,21 @@ def test_a_learned_movement_starts_in_the_commanded_state_and_ends_at_rest_at_it
         DMP(dofs, execution_time=1.5, goal=executor.position + 0.3 * SAFE_MOVE), "plain"
     )
     np.testing.assert_array_equal(_reference(executor, plain).positions, plain.dmp.trajectory().positions)
+
+
+def test_a_reference_at_99_7_percent_of_a_speed_limit_is_slowed_to_what_the_stream_tracks(executor):
+    """The stream accepts targets up to 99 % of a speed limit (room to stop accelerating): a reference at
+    99.7 % (a UR5e return's wrist did so) fell behind by 0.2 rad and failed. It is slowed down instead."""
+    from besman.sim.streaming import VELOCITY_SHARE
+
+    arm = executor.arm
+    speed = 0.997 * arm.max_velocity[0]
+    times = np.arange(0.0, 6.0, 0.002)  # slow enough that only the speed matters
+    velocities = np.zeros((len(times), arm.dofs))
+    velocities[:, 0] = speed * np.sin(np.pi * times / 6.0) ** 2
+    positions = np.cumsum(velocities, axis=0) * 0.002
+    accelerations = np.gradient(velocities, 0.002, axis=0)
+    factor = arm.slowdown(positions, velocities, accelerations, 0.002)
+    assert factor == pytest.approx(0.997 / VELOCITY_SHARE)
+    slowed = arm.slowdown(positions, velocities / factor, accelerations / factor**2, 0.002)
+    assert slowed == pytest.approx(1.0)
