@@ -8,7 +8,8 @@ the moment) can find a better theta: CMA-ES started at N(Theta(tau), Omega(tau))
 template itself prescribes (Metzen et al. 2014) - for at most :data:`MAX_ROLLOUTS` rollouts, the mean's
 included. The mean and the best theta are run once more, and the real execution uses the best theta only if
 it beat the mean by more than the reward's noise (:mod:`besman.learning.search.acceptance`; the fork's
-rollouts reproduce, so the noise is 0).
+rollouts reproduce, so the noise is 0). :func:`search_instance` is the same search for a leaf that aims with
+a template in its task's own rollouts (a throw, a swing).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from besman.sim.world import World
 from besman.skills import MovementPrimitive, SkillTemplate
 
 POPULATION = 8
-REPEATS = 1  # the mean and the best theta evaluated again: the reward's noise (0: the fork reproduces)
+REPEATS = 1  # the mean and the best theta evaluated again: the reward's noise (0 where rollouts reproduce)
 MAX_ROLLOUTS = 1 + 3 * POPULATION + 2 * REPEATS  # the mean, three generations of eight, the two again: 27
 DEFAULT_REWARD = Reward()
 
@@ -108,5 +109,49 @@ def refine_online(
         result.best_reward,
         result.rollouts + 1 + 2 * REPEATS,
         successes[chosen.tobytes()],
+        acceptance,
+    )
+
+
+@dataclass(frozen=True)
+class InstanceSearch:
+    """A template instance searched in simulation before it acts (a leaf's aim): the theta to use, its
+    reward, the rollouts the search and the repeated evaluations took, and the verdict."""
+
+    theta: np.ndarray
+    reward: float
+    rollouts: int
+    acceptance: Acceptance
+
+
+def search_instance(
+    evaluate,
+    mean: np.ndarray,
+    covariance: np.ndarray,
+    start_reward: float,
+    *,
+    budget: int,
+    seed: int,
+    target_reward: float,
+    population_size: int | None = None,
+) -> InstanceSearch:
+    """CMA-ES from the instance N(``mean``, ``covariance``), whose reward ``start_reward`` the caller has
+    measured, on ``evaluate(thetas) -> rewards`` for at most ``budget`` rollouts or until one reaches
+    ``target_reward``; the mean and the best are evaluated :data:`REPEATS` times more, and the best is kept
+    only where it gained more than the reward's noise (else the mean)."""
+    search = make_optimizer("cmaes", WarmStart(mean, covariance), seed=seed, population_size=population_size)
+    (result,) = policy_search(
+        lambda thetas, _: evaluate(thetas),
+        [search],
+        budget=budget,
+        evaluate_start=False,
+        target_reward=target_reward,
+    )
+    acceptance = reevaluated(evaluate, mean, result.best_theta, REPEATS, (start_reward, result.best_reward))
+    kept = acceptance.accepted
+    return InstanceSearch(
+        result.best_theta if kept else mean,
+        result.best_reward if kept else start_reward,
+        len(result.rewards) + 2 * REPEATS,
         acceptance,
     )

@@ -29,14 +29,12 @@ from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
 from besman.core.validation import SEED
-from besman.learning.search.acceptance import Acceptance, reevaluated
-from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
+from besman.learning.search.acceptance import Acceptance
+from besman.learning.search.online import search_instance
 from besman.sim.motions import MotionStatus
 from besman.tasks.ball_in_cup.executor import CatchExecutor
 from besman.trees.base import SimulationBehaviour
 from besman.trees.manipulation import TEMPLATE_PARAMETERS
-
-REPEATS = 1  # the template's and the best swing swung again in simulation: the reward's noise
 
 
 def _catching(name: str, executor) -> CatchExecutor:
@@ -105,25 +103,19 @@ class AimSwing(SimulationBehaviour):
         (predicted,), (predicted_reward,) = evaluation.details, evaluation.rewards
         best, caught, self.rollouts, self.acceptance = mean, predicted.success, 1, None
         if not caught and self.budget > 0:
-            search = make_optimizer(
-                "cmaes",
-                WarmStart(mean, covariance),
+            found = search_instance(
+                swings,
+                mean,
+                covariance,
+                predicted_reward,
+                budget=self.budget,
                 seed=self.seed,
+                target_reward=1e-9,  # every catch scores > 0, every miss <= 0
                 population_size=min(self.population, self.budget),
             )
-            (result,) = policy_search(
-                lambda thetas, _: swings(thetas),
-                [search],
-                budget=self.budget,
-                evaluate_start=False,
-                target_reward=1e-9,  # every catch scores > 0, every miss <= 0
-            )
-            self.acceptance = reevaluated(
-                swings, mean, result.best_theta, REPEATS, (predicted_reward, result.best_reward)
-            )
-            self.rollouts += len(result.rewards) + 2 * REPEATS
-            if self.acceptance.accepted:
-                best, caught = result.best_theta, result.best_reward > 0
+            self.acceptance, self.rollouts = found.acceptance, self.rollouts + found.rollouts
+            if found.acceptance.accepted:
+                best, caught = found.theta, found.reward > 0
         self.expected = caught
         self.instantiated = (self.template, tau)
         self.blackboard.set("swing", best, overwrite=True)

@@ -28,14 +28,12 @@ from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
 from besman.core.validation import SEED
-from besman.learning.search.acceptance import Acceptance, reevaluated
-from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
+from besman.learning.search.acceptance import Acceptance
+from besman.learning.search.online import search_instance
 from besman.sim.motions import MotionStatus
 from besman.tasks.throwing.executor import ThrowingExecutor
 from besman.trees.base import SimulationBehaviour
 from besman.trees.manipulation import TEMPLATE_PARAMETERS
-
-REPEATS = 1  # the template's and the best throw thrown again in simulation: the reward's noise
 
 
 def _throwing(name: str, executor) -> ThrowingExecutor:
@@ -96,20 +94,17 @@ class AimThrow(SimulationBehaviour):
         (predicted,) = throws(mean[None])
         best, reward, self.rollouts, self.acceptance = mean, predicted, 1, None
         if -reward > self.accept**2 and self.budget > 0:
-            search = make_optimizer("cmaes", WarmStart(mean, covariance), seed=self.seed)
-            (result,) = policy_search(
-                lambda thetas, _: throws(thetas),
-                [search],
+            found = search_instance(
+                throws,
+                mean,
+                covariance,
+                predicted,
                 budget=self.budget,
-                evaluate_start=False,
+                seed=self.seed,
                 target_reward=-(self.accept**2),
             )
-            self.acceptance = reevaluated(
-                throws, mean, result.best_theta, REPEATS, (predicted, result.best_reward)
-            )
-            self.rollouts += len(result.rewards) + 2 * REPEATS
-            if self.acceptance.accepted:
-                best, reward = result.best_theta, result.best_reward
+            best, reward, self.acceptance = found.theta, found.reward, found.acceptance
+            self.rollouts += found.rollouts
         self.expected_miss = float(np.sqrt(-reward)) if reward > -1000 else None
         self.instantiated = (self.template, tau)
         self.blackboard.set("throw", best, overwrite=True)
