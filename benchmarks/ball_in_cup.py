@@ -31,7 +31,7 @@ import numpy as np
 from open_loop_benchmark import arguments, cmaes, everywhere, outcomes, replayed
 
 from besman.tasks import task as registered
-from besman.tasks.ball_in_cup.baseline import scripted_swing
+from besman.tasks.ball_in_cup.baseline import scripted_baseline
 from besman.tasks.ball_in_cup.demonstration import (
     FILE,
     imitate,
@@ -74,7 +74,7 @@ def run(held_out: int, seeds: int, budget: int, tau: float, sigma: float) -> dic
     _, replay_q, replay_v = synthetic_swing(task.start, steps)
     report["demonstration_replayed"] = catches(replayed(task, replay_q, replay_v, taus))
     report["demonstration_imitated"] = catches(everywhere(task, theta, taus))
-    report["scripted_baseline"] = catches(replayed(task, *scripted_swing(task), taus))
+    report["scripted_baseline"] = catches(scripted_baseline(task, taus))
 
     report["cmaes"] = cmaes(
         task,

@@ -31,7 +31,7 @@ import numpy as np
 from open_loop_benchmark import arguments, cmaes, everywhere, outcomes, replayed
 
 from besman.tasks import task as registered
-from besman.tasks.puck_strike.baseline import calibrated_exit_ratio, scripted_strike
+from besman.tasks.puck_strike.baseline import calibrated_exit_ratio, scripted_baseline
 from besman.tasks.puck_strike.demonstration import (
     FILE,
     imitate,
@@ -55,12 +55,6 @@ def strikes(evaluation, **more) -> dict:
     return outcomes(evaluation, median_miss_m=round(float(np.median(misses)), 4) if misses else None) | more
 
 
-def scripted(task, taus, exit_ratio: float = 1.0):
-    motions = [scripted_strike(task, tau, exit_ratio) for tau in taus]
-    positions, velocities = np.array([q for q, _ in motions]), np.array([v for _, v in motions])
-    return task.evaluate_references(positions, velocities, taus)
-
-
 def run(held_out: int, seeds: int, budget: int, tau, sigma: float) -> dict:
     task = PuckStrikeRollouts()
     taus = held_out_taus(held_out)
@@ -80,10 +74,10 @@ def run(held_out: int, seeds: int, budget: int, tau, sigma: float) -> dict:
     report["demonstration_replayed"] = strikes(replay, rest=list(replay.details[0].rest))
     imitated = everywhere(task, theta, taus)
     report["demonstration_imitated"] = strikes(imitated, rest=list(imitated.details[0].rest))
-    report["scripted_baseline"] = strikes(scripted(task, taus))
+    report["scripted_baseline"] = strikes(scripted_baseline(task, taus))
     ratio = calibrated_exit_ratio(task, MIDDLE)
     report["scripted_baseline_calibrated"] = strikes(
-        scripted(task, taus, ratio), exit_ratio=round(ratio, 4), calibration_rollouts=1
+        scripted_baseline(task, taus, ratio), exit_ratio=round(ratio, 4), calibration_rollouts=1
     )
 
     target = np.asarray(tau, dtype=float)

@@ -229,14 +229,19 @@ class OpenLoopRollouts(BatchedRollouts):
         run = [i for i, failure in enumerate(failures) if failure is None]
         if run:
             states, sensors = self._run(positions[run], velocities[run], taus[run])
-            ok = self._sound(states, sensors)
             for row, i in enumerate(run):
-                if not ok[row]:
-                    rewards[i] = FAILURE_REWARD
-                    details[i] = self._failed(DIVERGED)
-                    continue
-                rewards[i], details[i] = self._score(states[row], sensors[row], taus[i])
+                rewards[i], details[i] = self.judged(states[row], sensors[row], taus[i])
         return Evaluation(rewards, tuple(details))
+
+    def judged(self, states: np.ndarray, sensors: np.ndarray, tau: np.ndarray) -> tuple[float, Any]:
+        """The reward and detail of one rollout that ran: its states (n_steps, nstate) and sensor data
+        (n_steps, nsensordata) as MuJoCo's rollout records them (the time from the rollout's start), for tau
+        (d,); a rollout that did not stay sound gets ``FAILURE_REWARD``. A run's executor judges a motion by
+        it too (:mod:`besman.sim.open_loop_executor`)."""
+        if not self._sound(states[None], sensors[None])[0]:
+            return FAILURE_REWARD, self._failed(DIVERGED)
+        reward, detail = self._score(states, sensors, tau)
+        return float(reward), detail
 
     def simulate(self, theta, tau) -> tuple[np.ndarray | None, Any]:
         """One rollout, step by step: ``qpos`` (n_steps, nq) of the whole model and its detail (None instead
@@ -248,10 +253,8 @@ class OpenLoopRollouts(BatchedRollouts):
         if failures[0] is not None:
             return None, self._failed(failures[0])
         states, sensors = self._run(positions, velocities, tau)
-        if not self._sound(states, sensors)[0]:
-            return None, self._failed(DIVERGED)
-        _, detail = self._score(states[0], sensors[0], tau[0])
-        return states[0, :, 1 : 1 + self.model.nq].copy(), detail
+        _, detail = self.judged(states[0], sensors[0], tau[0])
+        return (None if detail.failure == DIVERGED else states[0, :, 1 : 1 + self.model.nq].copy()), detail
 
     def _controls(self, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
         """Actuator commands (N, n_steps, nu): the reference at the step's end, led by its velocity."""

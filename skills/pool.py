@@ -54,8 +54,8 @@ from besman.skills.shared_kernel import SharedKernel
 from besman.skills.task_bounds import TaskBounds
 from besman.skills.template import EXPLORATIONS, SkillTemplate
 
-SCHEMA_VERSION = 2
-READABLE_VERSIONS = (1, 2)  # version 1: per-dimension templates, before the model was stored
+SCHEMA_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)  # 1: per-dimension templates, before the model was stored; 2: no drift
 KIND = "besman-skill-template"
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,99}")
 PROTOTYPE = "prototype."  # prefix of the prototype's arrays in the NPZ
@@ -274,6 +274,8 @@ def _model(document: dict, arrays: dict[str, np.ndarray], where: str) -> dict:
         for field in ("length_scale", "noise", "prior_weight")
     }
     fields["weights"] = require_field(kernel, "weights", str, f"{where}: kernel")
+    if document["schema_version"] >= 3:  # version 2: before the drift was a choice, always constant
+        fields["drift"] = require_field(kernel, "drift", str, f"{where}: kernel")
     return {"model": model, "kernel": SharedKernel(**fields), "prior_spread": arrays["prior_spread"]}
 
 

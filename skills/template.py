@@ -134,6 +134,7 @@ class SkillTemplate:
                 )
             self.prior_spread = spread
             self.kernel: SharedKernel | None = kernel or SharedKernel()  # None for the per-dimension model
+            self.kernel.check_inputs(taus)
         else:
             if kernel is not None or prior_spread is not None:
                 raise InputError("kernel= and prior_spread= are the shared model's")

@@ -22,7 +22,14 @@ c(x, x') = exp(-|x - x'|^2 / (2 l^2)) and A = C(X, X) + r I (r: the noise-to-sig
     w(x) = A^-1 c(x) + A^-1 1 (1 - 1^T A^-1 c(x)) / (1^T A^-1 1).
 
 The weights sum to one, so a coordinate that every training theta agrees on is predicted exactly, and at
-K = 1 the prediction is the one training theta. A variant clips negative weights (``weights="convex"``):
+K = 1 the prediction is the one training theta. With an affine drift (``drift="affine"``, "universal
+kriging", ibid.) the constant 1 becomes the features f(x) = [1, x] and F = f(X):
+
+    w(x) = A^-1 c(x) + A^-1 F (F^T A^-1 F)^-1 (f(x) - F^T A^-1 c(x)),
+
+so F^T w(x) = f(x): training thetas on an affine function of tau are predicted on it, also beyond them
+(a contextual search's linear policy, :mod:`besman.learning.search.contextual`, kept as its values at the
+training tasks, is the template it was). A variant clips negative weights (``weights="convex"``):
 the prediction is then a mixture of learned thetas and never extrapolates beyond them (kriging's negative
 weights can combine feasible throws into an infeasible one). The hyperparameters (l, r, the weights'
 form) are shared by all outputs; they are not fitted by marginal likelihood in theta space, which the
@@ -72,13 +79,22 @@ NOISE_BOUNDS = (1e-8, 1.0)
 VARIANCE_FLOOR = 1e-300  # a covariance must stay positive definite
 
 
+def drift_features(inputs: np.ndarray, drift: str) -> np.ndarray:
+    """(N, p) the drift's features of inputs (N, m): [1] (constant) or [1, x] (affine)."""
+    ones = np.ones((len(inputs), 1))
+    return ones if drift == "constant" else np.hstack([ones, inputs])
+
+
 class KrigingWeights:
     """The shared model's weights w(x) of the training thetas and lambda(x), for one training set."""
 
     def __init__(self, inputs: np.ndarray, kernel: SharedKernel) -> None:
         self.inputs, self.kernel = inputs, kernel
         self._factor = cho_factor(self._correlation(inputs, inputs) + kernel.noise * np.eye(len(inputs)))
-        self._ones = cho_solve(self._factor, np.ones(len(inputs)))  # A^-1 1
+        features = drift_features(inputs, kernel.drift)  # F (K, p)
+        self._solved_features = cho_solve(self._factor, features)  # A^-1 F
+        kernel.check_inputs(inputs)
+        self._gram = features.T @ self._solved_features  # F^T A^-1 F
 
     def _correlation(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         squared = ((a[:, None, :] - b[None, :, :]) ** 2).sum(axis=2)
@@ -89,8 +105,14 @@ class KrigingWeights:
         variance (0 at noise-free data, 1 far from it)."""
         cross = self._correlation(self.inputs, inputs)  # (K, N)
         solved = cho_solve(self._factor, cross)  # A^-1 c
-        deficit = 1.0 - self._ones @ cross  # 1 - 1^T A^-1 c
-        weights = (solved + np.outer(self._ones, deficit) / self._ones.sum()).T
+        # The drift's deficit f(x) - F^T A^-1 c(x), made up by the drift's generalised least squares; the
+        # constant drift in its closed form, the arithmetic of the templates learned before the affine one.
+        if self.kernel.drift == "constant":
+            ones = self._solved_features[:, 0]  # A^-1 1
+            weights = (solved + np.outer(ones, 1.0 - ones @ cross) / ones.sum()).T
+        else:
+            deficit = drift_features(inputs, self.kernel.drift).T - self._solved_features.T @ cross  # (p, N)
+            weights = (solved + self._solved_features @ np.linalg.solve(self._gram, deficit)).T
         if self.kernel.weights == "convex":
             weights = np.clip(weights, 0.0, None)
             weights /= weights.sum(axis=1, keepdims=True)  # the largest kriging weight is always positive

@@ -497,6 +497,18 @@ def replayed_everywhere(task, positions, velocities, taus):
     return task.evaluate_references(np.repeat(positions[None], n, 0), np.repeat(velocities[None], n, 0), taus)
 
 
+def registered_leaves(module):
+    """A task's leaf module with its node types registered: through the entry point of besman's
+    pyproject.toml (an editable install made before that line was added registers them after
+    ``pip install -e .``; here, directly)."""
+    from besman.trees.nodes import NODE_TYPES, register_node_type
+
+    for node in module.NODE_TYPES:
+        if node.__name__ not in NODE_TYPES:
+            register_node_type(node)
+    return module
+
+
 def assert_cmaes_succeeds(task, theta, tau, *, sigma: float, budget: int) -> None:
     """CMA-ES from ``theta`` (two seeds) finds a theta that succeeds at ``tau``."""
     from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search

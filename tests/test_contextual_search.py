@@ -107,6 +107,19 @@ def test_the_first_samples_follow_the_start_distribution_in_every_context(method
     np.testing.assert_allclose(optimizer.covariance, np.diag(stds**2), rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("method", [CREPS, ContextualCMAES])
+def test_a_search_can_start_from_a_given_affine_policy(method):
+    """The start policy W^T (e.g. a fit of thetas learned task by task) instead of the constant one."""
+    box = ContextBox(np.array([10.0, -1.0]), np.array([20.0, 1.0]))
+    coefficients = np.random.default_rng(3).normal(size=(3, 5))
+    optimizer = method(coefficients[0], 0.1, seed=0, context_box=box, coefficients=coefficients)
+    contexts = np.array([[10.0, -1.0], [20.0, 1.0], [12.5, 0.0]])
+    expected = np.hstack([np.ones((3, 1)), box.normalise(contexts)]) @ coefficients
+    np.testing.assert_allclose(optimizer.policy_mean(contexts), expected, rtol=1e-12, atol=1e-12)
+    with pytest.raises(InputError, match="coefficients"):
+        method(coefficients[0], 0.1, seed=0, context_box=box, coefficients=coefficients[:2])
+
+
 def test_contextual_cmaes_ranks_so_monotone_reward_transforms_change_nothing():
     # quadratic_with_failures is a strictly increasing function of quadratic's reward: identical ranks, so the
     # rank baseline gives the identical search, huge penalties or not.

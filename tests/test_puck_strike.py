@@ -13,6 +13,7 @@ from helpers import (
     assert_too_fast_is_penalised_not_simulated,
     closing,
     mujoco_warnings_said,
+    registered_leaves,
     replayed_everywhere,
 )
 
@@ -256,3 +257,165 @@ def test_cmaes_from_the_demonstration_hits_the_target(task, demo_theta):
 @pytest.mark.slow
 def test_the_task_runs_as_a_gymnasium_environment():
     assert_runs_as_a_gymnasium_environment("puck-strike")
+
+
+# -- the tree and the demo ----------------------------------------------------------------------------------
+
+POOL = examples.path("pools") / "puck_strike"
+TREE = examples.path("trees") / "puck_strike.yaml"
+
+
+@pytest.fixture(scope="module")
+def leaves():
+    from besman.tasks.puck_strike import leaves as module
+
+    return registered_leaves(module)
+
+
+@pytest.fixture(scope="module")
+def demo_pool(task, demo_theta, tmp_path_factory):
+    """A pool with a plumbing template: the imitated demonstration's strike at four targets, varied a
+    little (it misses everywhere)."""
+    from besman.skills import MovementPrimitive, SkillTemplate
+    from besman.skills.pool import SkillTemplatePool
+
+    taus = TARGETS[[0, 1, 3, 4]]
+    thetas = demo_theta + 0.01 * np.random.default_rng(0).normal(size=(len(taus), task.n_params))
+    prototype = MovementPrimitive(task.dmp, "puck_strike", robot="ur5e", group="arm")
+    template = SkillTemplate(
+        "puck_strike",
+        prototype,
+        taus,
+        thetas,
+        task.bounds,
+        prior_spread=0.1,
+        task="puck-strike",
+        provenance={"made by": "tests/test_puck_strike.py (plumbing: the demonstration's strike)"},
+    )
+    pool = SkillTemplatePool(tmp_path_factory.mktemp("pool") / "puck_strike")
+    pool.add(template)
+    return pool
+
+
+def test_the_leaves_are_named_under_the_node_type_entry_point_and_the_task_has_a_demo(capsys):
+    import tomllib
+
+    from besman.cli import main
+
+    pyproject = tomllib.loads((examples.path("pools").parents[1] / "pyproject.toml").read_text())
+    points = pyproject["project"]["entry-points"]["besman.node_types"]
+    assert points["puck_strike"] == "besman.tasks.puck_strike.leaves"
+    assert (
+        registered("puck-strike").tree == "puck_strike.yaml" and registered("puck-strike").tree_path == TREE
+    )
+    assert main(["demo", "--list"]) == 0
+    assert "puck-strike: the UR5e strikes a puck" in capsys.readouterr().out
+
+
+def test_the_run_with_the_tree_is_the_rollouts_outcome(leaves, demo_pool, task):
+    """The tree aims (the template, refined in simulation) and strikes in the run's world: the run's outcome
+    is the rollouts' for the strike it chose, by the task's rule, to the bit."""
+    import py_trees
+
+    from besman.tasks.running import prepare
+
+    prepared = prepare("puck-strike", TREE, pool=demo_pool.directory, values={"target": MIDDLE})
+    summary = prepared.judge(prepared.runner.run())
+    strike = py_trees.blackboard.Blackboard.get("/strike/strike")
+    expected = task.evaluate(strike, MIDDLE).details[0]
+    assert summary.success is expected.success is False and summary.status == "FAILURE"
+    assert summary.failed_node.endswith("/strike")
+    rest = np.round(expected.rest, 3).tolist()
+    assert summary.message == f"the puck came to rest at {rest}, {expected.distance:.3f} m from the target"
+    np.testing.assert_array_equal(
+        py_trees.blackboard.Blackboard.get("/strike/puck"), np.round(expected.rest, 3)
+    )
+    # The task's rule on the world as the run left it is the rollouts' rule on their last step.
+    assert summary.measurements["miss_m"] == pytest.approx(
+        np.linalg.norm(np.asarray(expected.rest) - MIDDLE), abs=1e-4
+    )
+    aim = prepared.runner.root.children[0]
+    assert aim.feedback_message.startswith("template at (1.550, 0.135) m: misses in simulation; after ")
+    assert "simulated strikes: still misses (the refinement's" in aim.feedback_message
+
+
+def test_a_target_outside_the_templates_box_fails_the_aim_by_name(leaves, demo_pool):
+    import py_trees
+    from py_trees.common import Status
+
+    from besman.trees.blackboard import set_task_values
+
+    scene = registered("puck-strike").scene("ur5e", {"target": MIDDLE}, None)
+    py_trees.blackboard.Blackboard.clear()
+    set_task_values({"target": [1.0, 0.1]})
+    aim = leaves.AimStrike("aim", pool=demo_pool, remap={"target": "/task/target"})
+    aim.setup(executor=scene.executor)
+    aim.tick_once()
+    assert aim.status is Status.FAILURE
+    assert aim.feedback_message == (
+        "target [1.0, 0.1]: tau target_x = 1 is outside the task's bounds [1.4, 1.7]"
+    )
+    with pytest.raises(InputError, match="no template 'other'"):
+        leaves.AimStrike("aim", pool=demo_pool, template="other")
+
+
+def test_the_leaves_need_the_open_loop_executor(leaves):
+    from besman.sim import Executor
+
+    scene = registered("ball-in-cup").scene("ur5e", {"string": [0.4]}, None)
+    strike = leaves.Strike("strike")
+    with pytest.raises(InputError, match="strike: Strike needs the open-loop executor"):
+        strike.setup(executor=Executor(scene.executor.world))
+
+
+def test_the_pool_holds_the_template_over_the_target():
+    from besman.skills.pool import SkillTemplatePool
+
+    pool = SkillTemplatePool(POOL)
+    assert list(pool) == ["puck_strike"] and pool.problems() == {}
+    template = pool["puck_strike"]
+    assert template.task == "puck-strike" and template.box == BOUNDS["ur5e"]
+    assert template.thetas.shape[1] == 72 and template.prototype.robot == "ur5e"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [0])
+def test_the_demo_strikes_the_puck_to_the_target_by_the_tasks_rule(leaves, task, seed, capsys):
+    import py_trees
+
+    from besman.cli import main
+    from besman.tasks.running import run_demo
+
+    summary = run_demo("puck-strike", seed=seed)
+    assert summary.success and summary.status == "SUCCESS"
+    measured = summary.measurements
+    assert measured["miss_m"] < SUCCESS_RADIUS and measured["puck_speed_m_s"] < REST_SPEED
+    target = np.array(measured["target"])
+    BOUNDS["ur5e"].check(target)  # inside the box
+    # The rollouts say the same of the strike the tree chose.
+    expected = task.evaluate(py_trees.blackboard.Blackboard.get("/strike/strike"), target).details[0]
+    assert expected.success and list(measured["puck"]) == np.round(expected.rest, 3).tolist()
+    assert main(["demo", "puck-strike", "--seed", str(seed)]) == 0
+    assert "SUCCESS: the puck is at rest at" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_the_demo_runs_watched_in_the_browser(leaves):
+    """--view: the run goes with the viewer serving the page and succeeds as without."""
+    import argparse
+    import urllib.request
+
+    from besman.commands.viewing import run_task
+
+    args = argparse.Namespace(
+        view=True, host="127.0.0.1", port=0, allow_origin=[], speed=1000.0, seed=1, robot=None
+    )
+    entry = registered("puck-strike")
+    summary, viewers = run_task(args, task=entry, values={}, log=None, demo="puck-strike")
+    try:
+        assert summary.success and summary.demo == "puck-strike" and summary.seed == 1
+        assert set(summary.measurements) == set(entry.measurements)
+        with urllib.request.urlopen(viewers[0].url, timeout=10) as page:
+            assert page.status == 200
+    finally:
+        viewers[0].close()

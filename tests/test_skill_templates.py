@@ -57,6 +57,38 @@ def test_a_linear_map_is_recovered_and_the_variance_grows_away_from_the_training
     assert instance is not template.prototype and template.prototype.theta.any() == 0
 
 
+def test_an_affine_drift_predicts_an_affine_map_exactly_beyond_its_tasks_and_a_constant_one_does_not():
+    """Universal kriging: training thetas on an affine function of tau are predicted on it everywhere (a
+    contextual search's linear policy kept as a template), whatever the length scale and noise."""
+    beyond = np.array([[-1.5, 2.5], [0.3, 0.7], [1.8, -0.4]])  # two of them outside the box
+    for length_scale, noise in ((0.6, 0.01), (0.1, 0.5)):
+        kernel = SharedKernel(length_scale, noise, weights="kriging", drift="affine")
+        template, slope, offset = linear_template(k=5, kernel=kernel)
+        np.testing.assert_allclose(template.predict(beyond)[0], beyond @ slope + offset, atol=1e-9)
+    constant, slope, offset = linear_template(k=5, kernel=SharedKernel(0.6, 0.01, weights="kriging"))
+    assert np.abs(constant.predict(beyond)[0] - (beyond @ slope + offset)).max() > 0.1
+    with pytest.raises(InputError, match="affine drift over 2 task parameters needs training tasks that"):
+        linear_template(k=2, kernel=SharedKernel(drift="affine"))
+    with pytest.raises(InputError, match="kernel drift must be one of"):
+        SharedKernel(drift="quadratic")
+
+
+def test_a_version_2_entry_has_the_constant_drift_and_a_version_3_entry_its_own(tmp_path):
+    pool = SkillTemplatePool(tmp_path)
+    affine = SharedKernel(0.6, 0.01, weights="kriging", drift="affine")
+    pool.add(linear_template(k=5, kernel=affine)[0])
+    assert SkillTemplatePool(tmp_path)["reach"].kernel == affine
+    manifest = tmp_path / "reach.json"
+    document = json.loads(manifest.read_text())
+    assert document["schema_version"] == 3 and document["kernel"]["drift"] == "affine"
+    del document["kernel"]["drift"]
+    manifest.write_text(json.dumps({**document, "schema_version": 2}))
+    assert SkillTemplatePool(tmp_path)["reach"].kernel.drift == "constant"
+    manifest.write_text(json.dumps({**document, "schema_version": 3}))
+    with pytest.raises(PoolError, match=r"reach\.json: kernel.*drift"):
+        SkillTemplatePool(tmp_path)["reach"]
+
+
 @pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 def test_each_dimension_has_its_own_gp_and_variance_shape():
     """The shared-kernel trap: one GP for all outputs would give every dimension the same variance shape.

@@ -66,17 +66,36 @@ def _experiment_throwing(args: argparse.Namespace) -> int:
     return 0
 
 
-def _experiment_ball_in_cup(args: argparse.Namespace) -> int:
+# The template studies (besman.experiments.template_study) by command name: the module with the task's STUDY,
+# what it is and its quick run's size (the modules import MuJoCo: named here, imported when run).
+TEMPLATE_STUDIES = {
+    "ball-in-cup": (
+        "besman.experiments.ball_in_cup",
+        "ball in a cup on the UR5e",
+        "K up to 4, 8 held-out lengths; about 30 s",
+    ),
+    "puck-strike": (
+        "besman.experiments.puck_strike",
+        "the puck strike on the UR5e",
+        "K = 4, 8 held-out targets; about 40 s",
+    ),
+}
+
+
+def _experiment_template_study(args: argparse.Namespace) -> int:
+    import importlib
+
     from besman.core.storage import check_output, write_atomically
-    from besman.experiments.ball_in_cup import Config, Experiment, report
-    from besman.experiments.ball_in_cup_plots import plot
+    from besman.experiments.template_study import Experiment, report
+    from besman.experiments.template_study_plots import plot
 
     out = Path(args.out)
     written = check_output(out / "results.json", option="--out", suffixes=(".json",))
     if args.pool is not None and Path(args.pool).exists() and not Path(args.pool).is_dir():
         raise InputError(f"--pool {args.pool}: a file, not a pool's folder")
-    config = Config.quick() if args.quick else Config()
-    results = Experiment(config, progress=True).run(None if args.pool is None else Path(args.pool))
+    study = importlib.import_module(TEMPLATE_STUDIES[args.experiment_command][0]).STUDY
+    config = study.quick if args.quick else study.config
+    results = Experiment(study, config, progress=True).run(None if args.pool is None else Path(args.pool))
     write_atomically(written, (json.dumps(results, indent=1) + "\n").encode())
     figures = plot(results, out)
     print(json.dumps(results, indent=1) if args.json else report(results))
@@ -130,15 +149,14 @@ def register(commands) -> None:
     )
     throwing.add_argument("--out", required=True, help="the results directory (an interrupted run resumes)")
     throwing.set_defaults(handler=_experiment_throwing)
-    ball_in_cup = experiment_commands.add_parser(
-        "ball-in-cup",
-        help="ball in a cup on the UR5e: the scripted baseline, CMA-ES from the demonstration, the skill "
-        "template over the string's length (results.json, two plots)",
-    )
-    ball_in_cup.add_argument(
-        "--quick", action="store_true", help="a small run (K up to 4, 8 held-out lengths; about 30 s)"
-    )
-    ball_in_cup.add_argument("--out", required=True, help="the results directory")
-    ball_in_cup.add_argument("--pool", help="store seed 0's template of all K training tasks in this pool")
-    ball_in_cup.add_argument("--json", action="store_true", help="print results.json to stdout")
-    ball_in_cup.set_defaults(handler=_experiment_ball_in_cup)
+    for name, (_, what, quick) in TEMPLATE_STUDIES.items():
+        study = experiment_commands.add_parser(
+            name,
+            help=f"{what}: the scripted baseline, CMA-ES from the demonstration, the skill template over tau "
+            "(results.json, two plots)",
+        )
+        study.add_argument("--quick", action="store_true", help=f"a small run ({quick})")
+        study.add_argument("--out", required=True, help="the results directory")
+        study.add_argument("--pool", help="store seed 0's template of all K training tasks in this pool")
+        study.add_argument("--json", action="store_true", help="print results.json to stdout")
+        study.set_defaults(handler=_experiment_template_study)

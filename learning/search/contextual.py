@@ -234,6 +234,9 @@ class _LinearGaussianPolicySearch:
     """The upper-level policy N(W phi(s), Sigma) with its sampling, its rollout window and update schedule;
     ``config`` holds the method's settings (default: its ``config_type``'s defaults).
 
+    ``coefficients`` (k, n), W^T on the policy's features of normalised contexts, start the policy's mean
+    somewhere other than the constant policy at ``mean`` (e.g. a fit of thetas already learned per context).
+
     Subclasses name their settings' class (``config_type``), say how many rollouts are between updates and
     how many each update uses (``_schedule``), set up their own state in ``_begin`` (``_factor``, L with
     Sigma = L L^T, starts as the start's) and implement ``_update`` on the window's normalised contexts,
@@ -251,6 +254,7 @@ class _LinearGaussianPolicySearch:
         context_box: ContextBox | None = None,
         context_dimensions: int | None = None,
         config: CREPSConfig | ContextualCMAESConfig | None = None,
+        coefficients=None,
     ) -> None:
         self.config = self.config_type() if config is None else config
         self._start = WarmStart(mean, spread)
@@ -261,11 +265,11 @@ class _LinearGaussianPolicySearch:
         self._policy_features = self.config.policy_features
         self._rng = np.random.default_rng(seed)
         self._update_every, window = self._schedule()
-        coefficients = np.zeros(
-            (self._features(np.zeros((1, self.context_dimensions))).shape[1], self.parameters)
-        )
-        coefficients[0] = self._start.mean
-        self._coefficients = coefficients  # W^T: (k, n)
+        shape = (self._features(np.zeros((1, self.context_dimensions))).shape[1], self.parameters)
+        if coefficients is None:  # the constant policy at the start's mean
+            coefficients = np.zeros(shape)
+            coefficients[0] = self._start.mean
+        self._coefficients = finite_array("coefficients", coefficients, shape=shape).copy()  # W^T: (k, n)
         self._factor = self._start.factor()
         self._window_contexts: deque[np.ndarray] = deque(maxlen=window)  # normalised
         self._window_thetas: deque[np.ndarray] = deque(maxlen=window)

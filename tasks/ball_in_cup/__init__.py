@@ -23,8 +23,8 @@ lengths at once on :class:`~besman.tasks.ball_in_cup.rollouts.BallInCupRollouts`
 (``ball_in_cup.yaml``, ``besman demo ball-in-cup``) instantiates the skill template over the string length
 (``examples/pools/ball_in_cup``, made by ``python -m besman.experiments.ball_in_cup``) for the run's string,
 refines it in simulation where it would miss (:mod:`~besman.tasks.ball_in_cup.leaves`) and swings it in the
-run's world (:mod:`~besman.tasks.ball_in_cup.executor`); a run can also be driven by joint targets
-(``TaskEnv``'s ``joint`` control).
+run's world (:mod:`besman.sim.open_loop_executor`); a run can also be driven by joint targets (``TaskEnv``'s
+``joint`` control).
 """
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ class BallInCup(OpenLoopTask, Task):
     def scene(self, robot: str, values, seed: int | None) -> Scene:
         import mujoco
 
-        from besman.tasks.ball_in_cup.executor import CatchExecutor
+        from besman.sim.open_loop_executor import OpenLoopExecutor
         from besman.tasks.ball_in_cup.world import ball_in_cup_world
 
         length = float(values["string"][0])
@@ -71,7 +71,7 @@ class BallInCup(OpenLoopTask, Task):
         start = rollouts.start_state(length)
         mujoco.mj_setState(world.model, world.data, start, mujoco.mjtState.mjSTATE_FULLPHYSICS.value)
         mujoco.mj_forward(world.model, world.data)
-        executor = CatchExecutor(world, rollouts)
+        executor = OpenLoopExecutor(world, rollouts, [length])
         history: list[tuple[float, np.ndarray]] = []
         sensor = world.model.sensor("ball_in_cup").adr[0]
 

@@ -94,3 +94,10 @@ def scripted_swing(task, waypoints=JERK) -> tuple[np.ndarray, np.ndarray]:
             f"the scripted moves take {begin:.2f} s, too long for a {task.config.duration} s rollout"
         )
     return positions, velocities
+
+
+def scripted_baseline(task, taus):
+    """The scripted swing (the same at every length) evaluated at each of ``taus`` (N, 1): the rollouts'
+    :class:`~besman.sim.evaluation.Evaluation`."""
+    q, v = scripted_swing(task)
+    return task.evaluate_references(np.repeat(q[None], len(taus), 0), np.repeat(v[None], len(taus), 0), taus)

@@ -21,8 +21,12 @@ is a round blade 10 cm wide, 19 cm beyond the gripper's pinch point.
 
 Policy search (``batched``) evaluates theta, the 72 parameters of the arm's joint-space DMP, for many targets
 at once on :class:`~besman.tasks.puck_strike.rollouts.PuckStrikeRollouts` (reward: minus the distance from
-where the puck comes to rest to the target, +1 for a success). The task has no default tree (no demo): a run
-is driven by joint targets (``TaskEnv``'s ``joint`` control) or by a learned DMP.
+where the puck comes to rest to the target, +1 for a success). The default tree (``puck_strike.yaml``,
+``besman demo puck-strike``) instantiates the skill template over the target (``examples/pools/puck_strike``)
+for the run's target, refines it in simulation where it would miss (:mod:`~besman.tasks.puck_strike.leaves`)
+and strikes it in the run's world (:mod:`besman.sim.open_loop_executor`: the rollouts' control rows, step by
+step, judged by the rollouts' rule, so the run's outcome is the rollouts'); a run can also be driven by joint
+targets (``TaskEnv``'s ``joint`` control).
 """
 
 from __future__ import annotations
@@ -43,7 +47,7 @@ class PuckStrike(OpenLoopTask, Task):
     randomised = "the target on the table (tau)"
     success = "the puck at rest on the table with its centre within 0.05 m of the target"
     robot = "ur5e"
-    tree = None
+    tree = "puck_strike.yaml"
     values = (
         TaskValue(
             "target",
@@ -66,15 +70,18 @@ class PuckStrike(OpenLoopTask, Task):
     def scene(self, robot: str, values, seed: int | None) -> Scene:
         import mujoco
 
-        from besman.sim.executor import Executor
+        from besman.sim.open_loop_executor import OpenLoopExecutor
         from besman.tasks.puck_strike.world import puck_strike_world
 
         target = np.asarray(values["target"], dtype=float)
         world = puck_strike_world()
-        start = self.batched(robot).start_state()
+        rollouts = self.batched(robot)  # the template's leaves simulate strikes in it, apart from this world
+        start = rollouts.start_state()
         mujoco.mj_setState(world.model, world.data, start, mujoco.mjtState.mjSTATE_FULLPHYSICS.value)
         mujoco.mj_forward(world.model, world.data)
-        executor = Executor(world)
+        # The strike ends with the rollout's last step, the run with it: the task's rule on the world as it
+        # stands is then the rollouts' rule on that step's sensors (the same function, the same values).
+        executor = OpenLoopExecutor(world, rollouts, target)
         return Scene(executor, dict(values), {"target": target.tolist()}, lambda: self.judge(world, target))
 
     def judge(self, world, target):

@@ -165,3 +165,18 @@ def calibrated_exit_ratio(task, target) -> float:
         raise InputError(f"the calibration strike failed: {detail.failure}")
     slid = float(np.linalg.norm(np.asarray(detail.rest) - np.asarray(PUCK_START)))
     return math.sqrt(slid / _aim(target)[3])
+
+
+def scripted_baseline(task, taus, exit_ratio: float = 1.0):
+    """The scripted strikes for targets ``taus`` (N, 2), each planned for its own target, evaluated: the
+    rollouts' :class:`~besman.sim.evaluation.Evaluation` (``exit_ratio`` as :func:`strike_plan`'s)."""
+    motions = [scripted_strike(task, tau, exit_ratio) for tau in taus]
+    positions, velocities = np.array([q for q, _ in motions]), np.array([v for _, v in motions])
+    return task.evaluate_references(positions, velocities, taus)
+
+
+def calibrated_baseline(task, taus):
+    """:func:`scripted_baseline` with the exit ratio measured from one strike at the box's middle
+    (:func:`calibrated_exit_ratio`): a planner with one learned number."""
+    middle = (np.asarray(task.bounds.low) + np.asarray(task.bounds.high)) / 2
+    return scripted_baseline(task, taus, calibrated_exit_ratio(task, middle))

@@ -1,0 +1,211 @@
+"""Leaves that aim and run a task's open-loop motion (:mod:`besman.sim.open_loop_executor`) with a skill
+template over the task's parameters tau; a task's own leaves are thin subclasses that name their roles and
+words (ball-in-a-cup's :mod:`~besman.tasks.ball_in_cup.leaves`, the puck strike's
+:mod:`~besman.tasks.puck_strike.leaves`).
+
+- :class:`OpenLoopAim` reads tau (its one read role) and instantiates the template ``template`` of ``pool``
+  there: Theta(tau) is the motion, Omega(tau) the template's uncertainty (Metzen et al. 2014). Where the
+  template's own motion would not succeed in simulation (the task's rollouts, apart from the running
+  simulation), it refines it by CMA-ES started from N(Theta(tau), Omega(tau)) (population ``population``)
+  until a simulated motion succeeds or ``budget`` motions are spent; the template's motion and the best are
+  simulated once more, and the best is kept only where it gained more than the reward's noise
+  (:mod:`~besman.learning.search.acceptance`). It writes theta (its one write role); a tau outside the
+  template's box fails it, with a message that names the value.
+- :class:`OpenLoopRun` executes theta (its one read role) in the running simulation
+  (:class:`~besman.sim.open_loop_executor.OpenLoopExecutor`), RUNNING while the motion and what it set going
+  run, and writes the task's outcome (its one write role); it succeeds if the rollouts' detail says the run
+  succeeded (the task's rule).
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+from py_trees.common import Access, Status
+
+from besman.core.errors import InputError
+from besman.core.validation import SEED
+from besman.learning.search.acceptance import Acceptance
+from besman.learning.search.online import search_instance
+from besman.sim.motions import MotionStatus
+from besman.sim.open_loop_executor import OpenLoopExecutor, OpenLoopMotion
+from besman.trees.base import SimulationBehaviour
+from besman.trees.manipulation import TEMPLATE_PARAMETERS
+
+
+def _role(cls: type, access: Access) -> str:
+    """The one role of ``cls`` with ``access``."""
+    (role,) = (role for role, given in cls.roles.items() if given is access)
+    return role
+
+
+class OpenLoopBehaviour(SimulationBehaviour):
+    """A leaf that needs the open-loop executor; ``demo`` names the demo that has one, for the message."""
+
+    demo: ClassVar[str] = ""
+
+    def setup(self, **kwargs) -> None:
+        super().setup(**kwargs)
+        if not isinstance(self.executor, OpenLoopExecutor):
+            raise InputError(
+                f"{self.name}: {type(self).__name__} needs the open-loop executor "
+                f"(besman.sim.open_loop_executor.OpenLoopExecutor: besman demo {self.demo})"
+            )
+
+
+class OpenLoopAim(OpenLoopBehaviour):
+    """Instantiates the template ``template`` of ``pool`` at tau and refines it in simulation where it would
+    not succeed, with at most ``budget`` more simulated motions; writes theta.
+
+    A subclass declares ``roles`` (tau read, theta written), ``default_template`` (the default of
+    ``template``) and the words of its feedback: ``unit`` (tau's), ``motions`` (what a simulated motion is
+    called, plural), ``succeeds`` and ``fails`` (what a motion does)."""
+
+    parameters: ClassVar = {
+        **TEMPLATE_PARAMETERS,
+        "budget": "int>=0",
+        "population": "int>0",
+        "seed": "int",
+    }
+    default_template: ClassVar[str] = ""
+    unit: ClassVar[str] = "m"
+    motions: ClassVar[str] = "motions"
+    succeeds: ClassVar[str] = "succeeds"
+    fails: ClassVar[str] = "fails"
+    # Every success of the rollouts scores above it, every other rollout at or below it.
+    success_above: ClassVar[float] = 0.0
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """The constructor's signature, as the node reference reads it: ``template`` defaults to the class's
+        ``default_template`` (None, the constructor's default, stands for it)."""
+        super().__init_subclass__(**kwargs)
+        signature = inspect.signature(cls.__init__)
+        parameters = list(signature.parameters.values())[1:]  # without self
+        cls.__signature__ = signature.replace(
+            parameters=[
+                p.replace(default=cls.default_template) if p.name == "template" and p.default is None else p
+                for p in parameters
+            ],
+            return_annotation=inspect.Signature.empty,
+        )
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        pool: Mapping[str, Any],
+        template: str | None = None,
+        budget: int = 10,
+        population: int = 5,
+        seed: int = 0,
+        namespace: str = "",
+        remap: Mapping[str, str] | None = None,
+    ) -> None:
+        super().__init__(name, namespace=namespace, remap=remap)
+        template = self.default_template if template is None else template
+        if template not in pool:
+            raise InputError(f"{name}: the pool has no template {template!r} (has: {', '.join(pool)})")
+        self.template = pool[template]
+        self.budget, self.population = budget, population
+        self.seed = SEED(f"{name}: seed", seed)  # out of range: refused with the file, not mid-run
+        self.tau_role, self.theta_role = _role(type(self), Access.READ), _role(type(self), Access.WRITE)
+        self.instantiated: tuple | None = None  # (template, tau) of the last aim, for viewers
+        self.rollouts = 0  # simulated motions of the last aim
+        self.expected: bool | None = None  # whether the chosen motion succeeds in simulation
+        self.acceptance: Acceptance | None = None  # the last aim's refinement's verdict (None: none ran)
+        for role in self.roles:
+            self.use(role)
+
+    def where(self, tau: np.ndarray) -> str:
+        """tau for the feedback: "0.375 m", "(1.550, 0.135) m"."""
+        values = ", ".join(f"{value:.3f}" for value in tau)
+        return f"{values if tau.size == 1 else f'({values})'} {self.unit}"
+
+    def update(self) -> Status:
+        rollouts = self.executor.rollouts
+        tau = np.asarray(self.blackboard.get(self.tau_role), dtype=float).reshape(-1)
+        try:
+            self.template.box.check(tau)
+            mean, covariance = self.template.distribution(tau)
+        except ValueError as error:
+            self.feedback_message = f"{self.tau_role} {tau.tolist()}: {error}"
+            return Status.FAILURE
+
+        def simulated(thetas: np.ndarray) -> np.ndarray:
+            return rollouts.evaluate(thetas, tau).rewards
+
+        evaluation = rollouts.evaluate(mean[None], tau)
+        (predicted,), (predicted_reward,) = evaluation.details, evaluation.rewards
+        best, succeeded, self.rollouts, self.acceptance = mean, predicted.success, 1, None
+        if not succeeded and self.budget > 0:
+            found = search_instance(
+                simulated,
+                mean,
+                covariance,
+                predicted_reward,
+                budget=self.budget,
+                seed=self.seed,
+                target_reward=float(np.nextafter(self.success_above, np.inf)),
+                population_size=min(self.population, self.budget),
+            )
+            self.acceptance, self.rollouts = found.acceptance, self.rollouts + found.rollouts
+            if found.acceptance.accepted:
+                best, succeeded = found.theta, found.reward > self.success_above
+        self.expected = succeeded
+        self.instantiated = (self.template, tau)
+        self.blackboard.set(self.theta_role, best, overwrite=True)
+        refined = "" if self.acceptance is None else f" (the refinement's {self.acceptance.text()})"
+        self.feedback_message = (
+            f"template at {self.where(tau)}: {self.succeeds if predicted.success else self.fails} in "
+            f"simulation; after {self.rollouts} simulated {self.motions}: "
+            f"{self.succeeds if succeeded else 'still ' + self.fails}{refined}"
+        )
+        return Status.SUCCESS
+
+
+class OpenLoopRun(OpenLoopBehaviour):
+    """Executes theta and writes the task's outcome; succeeds if the rollouts' detail says it succeeded.
+
+    A subclass declares ``roles`` (theta read, the outcome written), ``doing`` (the feedback while it runs)
+    and :meth:`outcome`."""
+
+    parameters: ClassVar = {}
+    doing: ClassVar[str] = "running"
+
+    def __init__(self, name: str, *, namespace: str = "", remap: Mapping[str, str] | None = None) -> None:
+        super().__init__(name, namespace=namespace, remap=remap)
+        self.theta_role, self.outcome_role = _role(type(self), Access.READ), _role(type(self), Access.WRITE)
+        self.motion: OpenLoopMotion | None = None
+        self.problem = ""
+        for role in self.roles:
+            self.use(role)
+
+    def outcome(self, motion: OpenLoopMotion) -> tuple[Any, str]:
+        """What the motion, run to its end, wrote (the outcome role's value) and says (the feedback)."""
+        raise NotImplementedError
+
+    def initialise(self) -> None:
+        self.problem, self.motion = "", None
+        try:
+            self.motion = self.executor.start_motion(self.blackboard.get(self.theta_role))
+        except (ValueError, KeyError) as error:
+            self.problem = str(error)
+
+    def update(self) -> Status:
+        if self.problem:
+            self.feedback_message = self.problem
+            return Status.FAILURE
+        motion = self.motion
+        if motion.status is MotionStatus.RUNNING:
+            self.feedback_message = f"{self.doing}, {motion.elapsed:.2f} s"
+            return Status.RUNNING
+        detail = motion.detail
+        if detail.failure is not None:
+            self.feedback_message = detail.failure
+            return Status.FAILURE
+        value, self.feedback_message = self.outcome(motion)
+        self.blackboard.set(self.outcome_role, value, overwrite=True)
+        return Status.SUCCESS if detail.success else Status.FAILURE
