@@ -10,6 +10,7 @@ import time
 import numpy as np
 
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
+from besman.sim.open_loop import SUCCESS
 
 
 def arguments(doc: str, *, budget: int, sigma: float, tau: str, tau_help: str) -> argparse.Namespace:
@@ -74,7 +75,7 @@ def cmaes(
         lambda thetas, owners: task.evaluate(thetas, target).rewards,
         optimizers,
         budget=budget,
-        target_reward=1e-9,  # every success scores > 0, every miss <= 0
+        target_reward=SUCCESS,
     )
     firsts = []
     for result in results:

@@ -34,6 +34,8 @@ from besman.sim.evaluation import BatchedRollouts, Evaluation, check_backend
 from besman.skills import DMP, DMPSettings
 
 FAILURE_REWARD = -10.0
+# The tasks' rewards: every success scores at least SUCCESS, every miss less.
+SUCCESS = float(np.nextafter(0.0, np.inf))
 VIOLATION_CAP = 1e3
 MAX_THREADS = 4  # rollout threads, and model copies
 MAX_START_STATES = 4096  # start states kept, by tau's physics

@@ -8,9 +8,10 @@ exactly as the task's rollouts do (:func:`mujoco.rollout`): before each physics 
 row for it (:meth:`~besman.sim.open_loop.OpenLoopRollouts._controls`), for the rollout's whole duration (the
 motion, then what it set going: a ball's flight, a puck's slide), from a zero warm start; after each step it
 records the full physics state (``mj_getState`` with the rollouts' own state spec, the time counted from
-the motion's start) and the sensor data, as MuJoCo's rollout records them. A step that makes MuJoCo warn,
-or a state that is not finite, ends the motion as diverged (a rollout that warns is unsound too). At the end
-the motion is judged by the rollouts' own rule (:meth:`~besman.sim.open_loop.OpenLoopRollouts.judged`) for
+the motion's start) and the sensor data, as MuJoCo's rollout records them. A state that is not finite ends
+the motion at once as diverged; otherwise it runs to its end, where MuJoCo's own resets after a bad
+acceleration (time starting again) make it diverged as they make a rollout (the rollouts' one rule). At the
+end the motion is judged by the rollouts' own rule (:meth:`~besman.sim.open_loop.OpenLoopRollouts.judged`) for
 the run's tau, so the reward and detail a behaviour tree sees are those the template was learned and refined
 for: from the rollouts' start state, the same bit for bit (tested). Ruckig does not smooth the motion: the
 rollouts already refuse a reference beyond the joint ranges or the speed limits, and smoothing a dynamic
@@ -49,7 +50,6 @@ class OpenLoopMotion:
     sensors: np.ndarray
     timestep: float
     started: float  # the world's time at the start (s)
-    warnings: np.ndarray  # MuJoCo's warning counts at the start
     step: int = 0
     reward: float | None = None
     detail: Any = None
@@ -117,7 +117,6 @@ class OpenLoopExecutor(Executor):
             np.empty((len(controls), model.nsensordata)),
             float(model.opt.timestep),
             float(data.time),
-            data.warning.number.copy(),
         )
         return self.open_loop
 
@@ -134,7 +133,7 @@ class OpenLoopExecutor(Executor):
             motion.states[row, 0] -= motion.started  # the motion's clock, as a rollout's
             motion.sensors[row] = data.sensordata
             motion.step += 1
-            if (data.warning.number > motion.warnings).any() or not np.isfinite(motion.states[row]).all():
+            if not np.isfinite(motion.states[row]).all():
                 motion.reward, motion.detail = FAILURE_REWARD, self.rollouts._failed(DIVERGED)
                 break
             if motion.step == len(motion.controls):

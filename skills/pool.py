@@ -12,7 +12,8 @@ two files per template:
 
 Nothing is pickled: a template is rebuilt from its training data and stored hyperparameters (the models
 are refitted with their hyperparameters given, which reproduces their predictions exactly). Schema
-version 2 added the model; version 1 entries (all per-dimension) are still read. Writes go through temporary
+version 2 added the model, version 3 the shared model's drift (constant or affine); entries of versions 1
+(all per-dimension) and 2 (a constant drift) are still read. Writes go through temporary
 files and renames (arrays first, manifest last) under an exclusive ``flock`` on the directory; reads hold
 a shared one (and write nothing into it), so two writers, or a writer and a reader, never see half an
 entry. An entry that is truncated, tampered with (its arrays no longer match the manifest's checksum), of

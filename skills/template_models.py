@@ -93,7 +93,7 @@ class KrigingWeights:
         self._factor = cho_factor(self._correlation(inputs, inputs) + kernel.noise * np.eye(len(inputs)))
         features = drift_features(inputs, kernel.drift)  # F (K, p)
         self._solved_features = cho_solve(self._factor, features)  # A^-1 F
-        kernel.check_inputs(inputs)
+        kernel.check_inputs(inputs, leave_one_out=False)
         self._gram = features.T @ self._solved_features  # F^T A^-1 F
 
     def _correlation(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -67,8 +67,11 @@ def test_an_affine_drift_predicts_an_affine_map_exactly_beyond_its_tasks_and_a_c
         np.testing.assert_allclose(template.predict(beyond)[0], beyond @ slope + offset, atol=1e-9)
     constant, slope, offset = linear_template(k=5, kernel=SharedKernel(0.6, 0.01, weights="kriging"))
     assert np.abs(constant.predict(beyond)[0] - (beyond @ slope + offset)).max() > 0.1
-    with pytest.raises(InputError, match="affine drift over 2 task parameters needs training tasks that"):
-        linear_template(k=2, kernel=SharedKernel(drift="affine"))
+    # Omega's leave-one-out residuals need m + 1 tasks without each one: m + 2 = 4 in all.
+    with pytest.raises(InputError, match=r"affine drift over 2 task parameters needs .*at least 4.*got 3"):
+        linear_template(k=3, kernel=SharedKernel(weights="kriging", drift="affine"))
+    with pytest.raises(InputError, match="drift 'affine' needs weights 'kriging'"):
+        SharedKernel(drift="affine")
     with pytest.raises(InputError, match="kernel drift must be one of"):
         SharedKernel(drift="quadratic")
 

@@ -22,8 +22,12 @@ def test_bad_sizes_and_a_joint_refinement_without_its_budget_are_refused():
         Config(k=4, ks=(2, 3))
     with pytest.raises(InputError, match="rollout budgets"):
         Config(joint_budget=-1)
-    with pytest.raises(InputError, match="puck_strike: a joint refinement needs both a spread and a budget"):
+    with pytest.raises(InputError, match=r"study puck_strike: joint_sigma 0\.03 and joint_budget 0: a joint"):
         Experiment(PUCK_STRIKE, replace(PUCK_STRIKE.quick, joint_budget=0))
+    with pytest.raises(InputError, match="study broken: baselines must start with 'scripted_baseline'"):
+        replace(PUCK_STRIKE, experiment="broken", baselines=PUCK_STRIKE.baselines[1:])
+    with pytest.raises(InputError, match=r"single_quantiles must lie in \[0, 1\], got \[1\.5\]"):
+        replace(PUCK_STRIKE, quick=replace(PUCK_STRIKE.quick, single_quantiles=(0.5, 1.5)))
 
 
 def test_the_chain_runs_up_the_lengths_and_grows_to_the_nearest_unsolved_target():

@@ -27,11 +27,10 @@ import numpy as np
 from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
-from besman.core.validation import SEED
-from besman.learning.search.acceptance import Acceptance
-from besman.learning.search.online import search_instance
 from besman.sim.motions import MotionStatus
+from besman.sim.open_loop import SUCCESS
 from besman.sim.open_loop_executor import OpenLoopExecutor, OpenLoopMotion
+from besman.trees.aim import TemplateAim
 from besman.trees.base import SimulationBehaviour
 from besman.trees.manipulation import TEMPLATE_PARAMETERS
 
@@ -56,7 +55,7 @@ class OpenLoopBehaviour(SimulationBehaviour):
             )
 
 
-class OpenLoopAim(OpenLoopBehaviour):
+class OpenLoopAim(TemplateAim, OpenLoopBehaviour):
     """Instantiates the template ``template`` of ``pool`` at tau and refines it in simulation where it would
     not succeed, with at most ``budget`` more simulated motions; writes theta.
 
@@ -75,8 +74,6 @@ class OpenLoopAim(OpenLoopBehaviour):
     motions: ClassVar[str] = "motions"
     succeeds: ClassVar[str] = "succeeds"
     fails: ClassVar[str] = "fails"
-    # Every success of the rollouts scores above it, every other rollout at or below it.
-    success_above: ClassVar[float] = 0.0
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """The constructor's signature, as the node reference reads it: ``template`` defaults to the class's
@@ -104,18 +101,13 @@ class OpenLoopAim(OpenLoopBehaviour):
         namespace: str = "",
         remap: Mapping[str, str] | None = None,
     ) -> None:
-        super().__init__(name, namespace=namespace, remap=remap)
         template = self.default_template if template is None else template
-        if template not in pool:
-            raise InputError(f"{name}: the pool has no template {template!r} (has: {', '.join(pool)})")
-        self.template = pool[template]
-        self.budget, self.population = budget, population
-        self.seed = SEED(f"{name}: seed", seed)  # out of range: refused with the file, not mid-run
+        super().__init__(
+            name, pool=pool, template=template, budget=budget, seed=seed, namespace=namespace, remap=remap
+        )
+        self.population = population
         self.tau_role, self.theta_role = _role(type(self), Access.READ), _role(type(self), Access.WRITE)
-        self.instantiated: tuple | None = None  # (template, tau) of the last aim, for viewers
-        self.rollouts = 0  # simulated motions of the last aim
         self.expected: bool | None = None  # whether the chosen motion succeeds in simulation
-        self.acceptance: Acceptance | None = None  # the last aim's refinement's verdict (None: none ran)
         for role in self.roles:
             self.use(role)
 
@@ -127,41 +119,24 @@ class OpenLoopAim(OpenLoopBehaviour):
     def update(self) -> Status:
         rollouts = self.executor.rollouts
         tau = np.asarray(self.blackboard.get(self.tau_role), dtype=float).reshape(-1)
-        try:
-            self.template.box.check(tau)
-            mean, covariance = self.template.distribution(tau)
-        except ValueError as error:
-            self.feedback_message = f"{self.tau_role} {tau.tolist()}: {error}"
+        aimed = self.aim(
+            self.tau_role,
+            tau,
+            lambda thetas: rollouts.evaluate(thetas, tau).rewards,
+            SUCCESS,
+            min(self.population, self.budget) if self.budget > 0 else None,
+        )
+        if aimed is None:
             return Status.FAILURE
-
-        def simulated(thetas: np.ndarray) -> np.ndarray:
-            return rollouts.evaluate(thetas, tau).rewards
-
-        evaluation = rollouts.evaluate(mean[None], tau)
-        (predicted,), (predicted_reward,) = evaluation.details, evaluation.rewards
-        best, succeeded, self.rollouts, self.acceptance = mean, predicted.success, 1, None
-        if not succeeded and self.budget > 0:
-            found = search_instance(
-                simulated,
-                mean,
-                covariance,
-                predicted_reward,
-                budget=self.budget,
-                seed=self.seed,
-                target_reward=float(np.nextafter(self.success_above, np.inf)),
-                population_size=min(self.population, self.budget),
-            )
-            self.acceptance, self.rollouts = found.acceptance, self.rollouts + found.rollouts
-            if found.acceptance.accepted:
-                best, succeeded = found.theta, found.reward > self.success_above
-        self.expected = succeeded
-        self.instantiated = (self.template, tau)
-        self.blackboard.set(self.theta_role, best, overwrite=True)
-        refined = "" if self.acceptance is None else f" (the refinement's {self.acceptance.text()})"
+        predicted, self.expected = (
+            aimed.instance_reward >= SUCCESS,
+            aimed.reward >= SUCCESS,
+        )
+        self.blackboard.set(self.theta_role, aimed.theta, overwrite=True)
         self.feedback_message = (
-            f"template at {self.where(tau)}: {self.succeeds if predicted.success else self.fails} in "
+            f"template at {self.where(tau)}: {self.succeeds if predicted else self.fails} in "
             f"simulation; after {self.rollouts} simulated {self.motions}: "
-            f"{self.succeeds if succeeded else 'still ' + self.fails}{refined}"
+            f"{self.succeeds if self.expected else 'still ' + self.fails}{self.refinement_text()}"
         )
         return Status.SUCCESS
 

@@ -66,19 +66,11 @@ def _experiment_throwing(args: argparse.Namespace) -> int:
     return 0
 
 
-# The template studies (besman.experiments.template_study) by command name: the module with the task's STUDY,
-# what it is and its quick run's size (the modules import MuJoCo: named here, imported when run).
+# The template studies (besman.experiments.template_study) by command name: the module with the task's STUDY
+# and what it is (the modules import MuJoCo: named here, imported when run).
 TEMPLATE_STUDIES = {
-    "ball-in-cup": (
-        "besman.experiments.ball_in_cup",
-        "ball in a cup on the UR5e",
-        "K up to 4, 8 held-out lengths; about 30 s",
-    ),
-    "puck-strike": (
-        "besman.experiments.puck_strike",
-        "the puck strike on the UR5e",
-        "K = 4, 8 held-out targets; about 40 s",
-    ),
+    "ball-in-cup": ("besman.experiments.ball_in_cup", "ball in a cup on the UR5e"),
+    "puck-strike": ("besman.experiments.puck_strike", "the puck strike on the UR5e"),
 }
 
 
@@ -149,13 +141,13 @@ def register(commands) -> None:
     )
     throwing.add_argument("--out", required=True, help="the results directory (an interrupted run resumes)")
     throwing.set_defaults(handler=_experiment_throwing)
-    for name, (_, what, quick) in TEMPLATE_STUDIES.items():
+    for name, (_, what) in TEMPLATE_STUDIES.items():
         study = experiment_commands.add_parser(
             name,
             help=f"{what}: the scripted baseline, CMA-ES from the demonstration, the skill template over tau "
             "(results.json, two plots)",
         )
-        study.add_argument("--quick", action="store_true", help=f"a small run ({quick})")
+        study.add_argument("--quick", action="store_true", help="a small run for tests (under a minute)")
         study.add_argument("--out", required=True, help="the results directory")
         study.add_argument("--pool", help="store seed 0's template of all K training tasks in this pool")
         study.add_argument("--json", action="store_true", help="print results.json to stdout")

@@ -22,8 +22,9 @@ and none chosen on the held-out taus:
    warm-started from the theta of the solved task nearest to it (the first from the imitated
    demonstration). A training evaluation is the study's robust one (the mean reward over the study's
    ``neighbourhood`` of tau). A start that already scores above the study's ``training_target`` is kept;
-   otherwise CMA-ES at ``sigma`` searches until an evaluation does, or ``training_budget`` evaluations, and
-   the best is kept. Stopping there keeps neighbouring thetas close.
+   otherwise CMA-ES at ``sigma`` searches until an evaluation does, or ``training_budget`` evaluations (in
+   whole generations: up to one population more), and the best is kept. Stopping there keeps neighbouring
+   thetas close.
 3. **The template** (:meth:`Experiment.template`): the shared-kernel
    :class:`~besman.skills.template.SkillTemplate` of the first K training tasks of the draw. The templates
    of fewer tasks (the curve over ``ks``) take the first K of the draw, trained in the chain of all ``k``.
@@ -32,7 +33,8 @@ and none chosen on the held-out taus:
    affine policy theta = W [1, tau]) starts from the least-squares affine fit of the K chained thetas with
    spread ``joint_sigma`` and searches on rollouts at those K taus (drawn uniformly) for ``joint_budget``
    rollouts; the template is then the policy's mean at the K taus with the study's first kernel, whose
-   affine drift reproduces the policy (K must exceed tau's dimension; with fewer tasks, as below).
+   affine drift reproduces the policy (K must be at least tau's dimension + 2: the drift, and Omega's
+   leave-one-out residuals; with fewer tasks, as below).
    Otherwise the kernel is chosen among the study's ``kernels`` by leave-one-out over the training tasks
    (each predicted from the others and evaluated there robustly, counted): the highest mean reward wins,
    ties to the first; with fewer than 3 tasks the study's ``few_tasks_kernel``.
@@ -41,7 +43,9 @@ and none chosen on the held-out taus:
    ``refine_population`` for ``refine_budget`` more rollouts, stopped at the first success.
 
 Everything is seeded and the rollouts are deterministic: the same command writes the same numbers (apart from
-the wall times). The study's module says how its settings were chosen.
+the wall times). Every search's seed is derived from the run's seed, its stage and its keys
+(:func:`~besman.core.seeds.child_seed`), so no two searches share a random stream. The study's module says
+how its settings were chosen.
 """
 
 from __future__ import annotations
@@ -56,25 +60,28 @@ import numpy as np
 
 from besman import examples
 from besman.core.errors import InputError
+from besman.core.seeds import child_seed
 from besman.learning.search.contextual import (
     ContextBox,
     ContextualCMAES,
     ContextualCMAESConfig,
     contextual_search,
 )
+from besman.learning.search.linear_gaussian import context_features
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.learning.template_selection import predictions
+from besman.sim.open_loop import SUCCESS
 from besman.skills import MovementPrimitive
 from besman.skills.pool import SkillTemplatePool
 from besman.skills.shared_kernel import SharedKernel
 from besman.skills.template import SkillTemplate
 from besman.tasks import task as registered
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: the keys of any tau (held_out, single.taus, training_taus), not a length's
 HELD_OUT_SEED = 1
 TRAINING_SEED = 10  # + the seed: the training taus' Latin hypercube
-CHECK_SEED = 100_000  # + 1000 seed + 100 K + the held-out index: the refinements' CMA-ES
-JOINT_SEED = 200_000  # + 1000 seed + K: the joint refinement's
+# The searches' seeds: child_seed(seed, STAGE, its keys), unrelated between stages, seeds, K and tasks.
+SINGLE, TRAINING, JOINT_POLICY, JOINT_CONTEXTS, REFINEMENT = range(1, 6)
 
 
 @dataclass(frozen=True)
@@ -130,6 +137,27 @@ class Study:
     tau_label: str = "tau"  # for reports and plots
     cost_label: str = "cost"
 
+    def __post_init__(self) -> None:
+        where = f"study {self.experiment}"
+        if not self.baselines or self.baselines[0][0] != "scripted_baseline":
+            raise InputError(f"{where}: baselines must start with 'scripted_baseline' (the plots' reference)")
+        if not self.kernels:
+            raise InputError(f"{where}: kernels must name at least one kernel")
+        if self.refine_population < 1 or not self.sigma > 0:
+            raise InputError(
+                f"{where}: refine_population must be >= 1 and sigma > 0, got {self.refine_population}, "
+                f"{self.sigma}"
+            )
+        for config in (self.config, self.quick):
+            outside = [q for q in config.single_quantiles if not 0.0 <= q <= 1.0]
+            if outside:
+                raise InputError(f"{where}: single_quantiles must lie in [0, 1], got {outside}")
+            if (self.joint_sigma is None) != (config.joint_budget == 0):
+                raise InputError(
+                    f"{where}: joint_sigma {self.joint_sigma} and joint_budget {config.joint_budget}: a "
+                    "joint refinement needs both (or neither)"
+                )
+
     @property
     def demonstration_path(self) -> Path:
         return examples.path("data") / self.demonstration
@@ -159,7 +187,10 @@ class Experiment:
         study = self.study
         self.config = self.config or study.config
         if (study.joint_sigma is None) != (self.config.joint_budget == 0):
-            raise InputError(f"{study.experiment}: a joint refinement needs both a spread and a budget")
+            raise InputError(
+                f"study {study.experiment}: joint_sigma {study.joint_sigma} and joint_budget "
+                f"{self.config.joint_budget}: a joint refinement needs both (or neither)"
+            )
         self.registered = registered(study.task)
         self.task = self.registered.batched(study.robot)
         self.box = self.task.bounds
@@ -185,10 +216,10 @@ class Experiment:
 
     def baselines(self) -> dict:
         taus, n = self.held_out, len(self.held_out)
-        results = {
-            name: successes(baseline(self.task, taus)).astype(int).tolist()
-            for name, baseline in self.study.baselines
-        }
+        results = {}
+        for name, baseline in self.study.baselines:  # their own motions, a rollout per held-out tau
+            results[name] = successes(baseline(self.task, taus)).astype(int).tolist()
+            self.rollouts["baselines"] = self.rollouts.get("baselines", 0) + n
         imitated = self.evaluate(np.repeat(self.theta_demo[None], n, 0), taus, "baselines")
         results["demonstration_imitated"] = successes(imitated).astype(int).tolist()
         return results
@@ -208,7 +239,7 @@ class Experiment:
 
     def single(self) -> dict:
         config, sigma, out = self.config, self.study.sigma, []
-        for tau in self.single_taus():
+        for t, tau in enumerate(self.single_taus()):
             self.say(
                 f"one {self.study.tau_label} from the demonstration, {self.tau_text(tau)}: "
                 f"{config.single_seeds} seeds x {config.single_budget} rollouts"
@@ -224,7 +255,7 @@ class Experiment:
                 return evaluation.rewards
 
             optimizers = [
-                make_optimizer("cmaes", WarmStart(self.theta_demo, sigma), seed=seed)
+                make_optimizer("cmaes", WarmStart(self.theta_demo, sigma), seed=child_seed(seed, SINGLE, t))
                 for seed in range(config.single_seeds)
             ]
             policy_search(objective, optimizers, budget=config.single_budget)
@@ -248,8 +279,11 @@ class Experiment:
                 {
                     "tau": np.round(tau, 4).tolist(),
                     "rollouts_to_first_success": firsts,
-                    "mean_rollouts_to_first_success": float(np.mean(solved)) if solved else None,
-                    "all_seeds_succeeded": len(solved) == len(firsts),
+                    # A mean over every seed, or none: a mean over the seeds that succeeded would flatter.
+                    "mean_rollouts_to_first_success": float(np.mean(firsts))
+                    if len(solved) == len(firsts)
+                    else None,
+                    "seeds_succeeded": len(solved),
                     "curves": curves,
                 }
             )
@@ -305,7 +339,11 @@ class Experiment:
             else:
                 (result,) = policy_search(
                     lambda thetas_, _, tau=tau: self.robust_rewards(thetas_, tau, "training"),
-                    [make_optimizer("cmaes", WarmStart(start, study.sigma), seed=1000 * seed + int(i))],
+                    [
+                        make_optimizer(
+                            "cmaes", WarmStart(start, study.sigma), seed=child_seed(seed, TRAINING, i)
+                        )
+                    ],
                     budget=self.config.training_budget,
                     evaluate_start=False,
                     target_reward=study.training_target,
@@ -355,12 +393,12 @@ class Experiment:
         """The K training thetas refined together by contextual CMA-ES (module documentation, step 3)."""
         budget = self.config.joint_budget
         box = ContextBox(np.asarray(self.box.low, dtype=float), np.asarray(self.box.high, dtype=float))
-        features = np.hstack([np.ones((len(taus), 1)), box.normalise(taus)])
+        features = context_features(box.normalise(taus), "affine")
         fitted = np.linalg.lstsq(features, thetas, rcond=None)[0]
         optimizer = ContextualCMAES(
             fitted[0],
             self.study.joint_sigma,
-            seed=JOINT_SEED + 1000 * seed + len(taus),
+            seed=child_seed(seed, JOINT_POLICY, len(taus)),
             context_box=box,
             config=ContextualCMAESConfig(),
             coefficients=fitted,
@@ -377,7 +415,7 @@ class Experiment:
             optimizer,
             budget=budget,
             sample_contexts=lambda rng, count: taus[rng.integers(0, len(taus), count)],
-            seed=JOINT_SEED + 1000 * seed + len(taus),
+            seed=child_seed(seed, JOINT_CONTEXTS, len(taus)),
             checkpoint_every=max(1, budget // 10),
             on_checkpoint=check,
         )
@@ -386,7 +424,9 @@ class Experiment:
     def template(self, training: dict, k: int, seed: int) -> tuple[SkillTemplate, dict]:
         study = self.study
         taus, thetas = training["taus"][:k], training["thetas"][:k]
-        if study.joint_sigma is not None and k > len(self.box.names):
+        # An affine policy's template needs m + 2 tasks (its drift, and Omega's leave-one-out residuals).
+        joint = study.joint_sigma is not None and k >= len(self.box.names) + 2
+        if joint:
             self.say(
                 f"seed {seed}: the {k} training tasks refined together ({self.config.joint_budget} rollouts)"
             )
@@ -397,14 +437,14 @@ class Experiment:
             facts = {"kernel_losses": losses}
         quick = " --quick" if self.config == study.quick else ""
         prototype = MovementPrimitive(self.task.dmp, study.template, robot=study.robot, group="arm")
-        joint = (
-            ""
-            if study.joint_sigma is None
-            else (
+        refined_together = (
+            (
                 "; then refined together by contextual CMA-ES (an affine policy from the least-squares fit "
                 f"of the chained thetas, sigma {study.joint_sigma}, {self.config.joint_budget} rollouts at "
                 "the training taus), kept as the policy's mean at them, with an affine drift"
             )
+            if joint
+            else ""
         )
         template = SkillTemplate(
             study.template,
@@ -424,7 +464,8 @@ class Experiment:
                 "training": (
                     "a chain from the demonstration, each task from the nearest solved task's theta; CMA-ES "
                     f"(sigma {study.sigma}) until a robust evaluation scores above {study.training_target}, "
-                    f"at most {self.config.training_budget} evaluations{joint}"
+                    f"for at most {self.config.training_budget} evaluations (in whole generations) after "
+                    f"the start's{refined_together}"
                 ),
                 "kernel": f"see besman.experiments.{study.experiment}",
                 "demonstration": f"examples/data/{study.demonstration} (synthetic)",
@@ -441,7 +482,7 @@ class Experiment:
         refined = zero.copy()
         spent = np.zeros(len(taus), dtype=int)
         misses = np.flatnonzero(~zero)
-        if misses.size and self.config.refine_budget > 0:
+        if misses.size:
             budget = self.config.refine_budget
             optimizers = []
             for i in misses:
@@ -450,7 +491,7 @@ class Experiment:
                     make_optimizer(
                         "cmaes",
                         WarmStart(mean, covariance),
-                        seed=CHECK_SEED + 1000 * seed + 100 * k + int(i),
+                        seed=child_seed(seed, REFINEMENT, k, int(i)),
                         population_size=min(self.study.refine_population, budget),
                     )
                 )
@@ -462,7 +503,7 @@ class Experiment:
                     succeeded.setdefault(int(owner), []).append(bool(s))
                 return evaluation.rewards
 
-            policy_search(objective, optimizers, budget=budget, evaluate_start=False, target_reward=1e-9)
+            policy_search(objective, optimizers, budget=budget, evaluate_start=False, target_reward=SUCCESS)
             for owner, i in enumerate(misses):
                 tries = succeeded.get(owner, [])[:budget]
                 refined[i] = any(tries)
@@ -569,7 +610,12 @@ def report(results: dict) -> str:
     for entry in results["single"]["taus"]:
         lines.append(
             f"one tau from the demonstration, {entry['tau']}: rollouts to the first success "
-            f"{entry['rollouts_to_first_success']} (mean {entry['mean_rollouts_to_first_success']})"
+            f"{entry['rollouts_to_first_success']} "
+            + (
+                f"(mean {entry['mean_rollouts_to_first_success']})"
+                if entry["mean_rollouts_to_first_success"] is not None
+                else f"({entry['seeds_succeeded']} of {len(entry['curves'])} seeds within the budget)"
+            )
         )
     lines.append(
         f"template, K = {s['k']}: zero shot {[f'{r:.0%}' for r in s['zero_shot_rate_per_seed']]} "

@@ -36,7 +36,7 @@ def plot(results: dict, directory: Path) -> list[Path]:
         right.fill_between(x, cost.min(axis=0), cost.max(axis=0), color=line.get_color(), alpha=0.15)
     seeds = len(single["taus"][0]["curves"])
     left.axhline(scripted, color="grey", ls="--", label=f"scripted baseline (held out) {scripted:.0%}")
-    left.axvline(75, color="k", ls=":", lw=0.8)
+    left.axvline(75, color="k", ls=":", lw=0.8, label="75 rollouts (Kober & Peters' ball in a cup)")
     left.set(
         xlabel="rollouts (0: the imitated demonstration)",
         ylabel=f"fraction of {seeds} seeds succeeded so far",

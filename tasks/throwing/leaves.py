@@ -27,11 +27,9 @@ import numpy as np
 from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
-from besman.core.validation import SEED
-from besman.learning.search.acceptance import Acceptance
-from besman.learning.search.online import search_instance
 from besman.sim.motions import MotionStatus
 from besman.tasks.throwing.executor import ThrowingExecutor
+from besman.trees.aim import TemplateAim
 from besman.trees.base import SimulationBehaviour
 from besman.trees.manipulation import TEMPLATE_PARAMETERS
 
@@ -42,7 +40,7 @@ def _throwing(name: str, executor) -> ThrowingExecutor:
     return executor
 
 
-class AimThrow(SimulationBehaviour):
+class AimThrow(TemplateAim):
     """Instantiates the throwing template ``template`` of ``pool`` for the ``target`` and refines it in
     simulation where it would miss by more than ``accept`` m; writes ``throw``."""
 
@@ -61,16 +59,11 @@ class AimThrow(SimulationBehaviour):
         namespace: str = "",
         remap: Mapping[str, str] | None = None,
     ) -> None:
-        super().__init__(name, namespace=namespace, remap=remap)
-        if template not in pool:
-            raise InputError(f"{name}: the pool has no template {template!r} (has: {', '.join(pool)})")
-        self.template = pool[template]
-        self.accept, self.budget = accept, budget
-        self.seed = SEED(f"{name}: seed", seed)  # out of range: refused with the file, not mid-run
-        self.instantiated: tuple | None = None  # (template, tau) of the last aim, for viewers
-        self.rollouts = 0  # simulated throws of the last aim
+        super().__init__(
+            name, pool=pool, template=template, budget=budget, seed=seed, namespace=namespace, remap=remap
+        )
+        self.accept = accept
         self.expected_miss: float | None = None  # m, of the chosen throw in simulation
-        self.acceptance: Acceptance | None = None  # the last aim's refinement's verdict (None: none ran)
         self.use("target")
         self.use("throw")
 
@@ -81,39 +74,18 @@ class AimThrow(SimulationBehaviour):
     def update(self) -> Status:
         task = self.executor.task
         tau = np.asarray(self.blackboard.get("target"), dtype=float)
-        try:
-            self.template.box.check(tau)
-            mean, covariance = self.template.distribution(tau)
-        except ValueError as error:
-            self.feedback_message = f"target {tau.tolist()}: {error}"
+        # The reward is minus the squared miss (m^2); a throw that lands nowhere scores <= -1000.
+        aimed = self.aim("target", tau, lambda thetas: task.evaluate(thetas, tau).rewards, -(self.accept**2))
+        if aimed is None:
             return Status.FAILURE
-
-        def throws(thetas: np.ndarray) -> np.ndarray:
-            return task.evaluate(thetas, tau).rewards
-
-        (predicted,) = throws(mean[None])
-        best, reward, self.rollouts, self.acceptance = mean, predicted, 1, None
-        if -reward > self.accept**2 and self.budget > 0:
-            found = search_instance(
-                throws,
-                mean,
-                covariance,
-                predicted,
-                budget=self.budget,
-                seed=self.seed,
-                target_reward=-(self.accept**2),
-            )
-            best, reward, self.acceptance = found.theta, found.reward, found.acceptance
-            self.rollouts += found.rollouts
-        self.expected_miss = float(np.sqrt(-reward)) if reward > -1000 else None
-        self.instantiated = (self.template, tau)
-        self.blackboard.set("throw", best, overwrite=True)
+        self.expected_miss = float(np.sqrt(-aimed.reward)) if aimed.reward > -1000 else None
+        self.blackboard.set("throw", aimed.theta, overwrite=True)
+        predicted = aimed.instance_reward
         predicted_miss = "no landing" if predicted <= -1000 else f"{np.sqrt(-predicted):.2f} m"
         expected = "no landing" if self.expected_miss is None else f"{self.expected_miss:.2f} m"
-        refined = "" if self.acceptance is None else f" (the refinement's {self.acceptance.text()})"
         self.feedback_message = (
             f"template at {np.round(tau, 2).tolist()}: misses by {predicted_miss}; "
-            f"after {self.rollouts} simulated throws: {expected}{refined}"
+            f"after {self.rollouts} simulated throws: {expected}{self.refinement_text()}"
         )
         return Status.SUCCESS
 
