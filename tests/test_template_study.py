@@ -44,9 +44,11 @@ def test_the_chain_runs_up_the_lengths_and_grows_to_the_nearest_unsolved_target(
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("study", [BALL_IN_CUP, PUCK_STRIKE], ids=lambda study: study.task)
-def test_the_experiments_quick_run_writes_json_plots_and_a_pool(study, tmp_path):
+def test_the_experiments_quick_run_writes_json_plots_and_a_pool(tmp_path):
+    """The puck strike's (ball-in-a-cup's runs the same code: its committed results are checked below)."""
     from besman.cli import main
+
+    study = PUCK_STRIKE
 
     pool = tmp_path / "pool"
     assert main(["experiment", study.task, "--quick", "--out", str(tmp_path), "--pool", str(pool)]) == 0
