@@ -11,7 +11,7 @@ diverged simulation ``FAILURE_REWARD``.
 A task subclasses it with its world, its start pose and what is specific to it: which model parameters tau
 sets (:meth:`~OpenLoopRollouts._physics_key`, :meth:`~OpenLoopRollouts._configure`), where its objects start
 (:meth:`~OpenLoopRollouts._place`) and how a rollout's recorded states and sensors score
-(:meth:`~OpenLoopRollouts._score`, :meth:`~OpenLoopRollouts._failed`). Rollouts run on a few copies of the
+(:meth:`~OpenLoopRollouts._score`, :meth:`~OpenLoopRollouts.failed`). Rollouts run on a few copies of the
 model, each set to one tau's parameters for a batch of the rollouts that share them (never a copy per tau);
 each rollout is independent of the others (its own start state, zero warm start), so the same theta and tau
 give the same reward bit for bit, whatever else is in the batch and in whatever order.
@@ -78,7 +78,7 @@ class OpenLoopRollouts(BatchedRollouts):
         self._threads = max(1, min(MAX_THREADS, os.cpu_count() or 1))
         self._copies: list[mujoco.MjModel] = []  # one per thread, each set to one tau's physics of a batch
         self._states: dict[Hashable, np.ndarray] = {}  # start states by tau's physics
-        self._spec = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
+        self.state_spec = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
         self._pool: rollout.Rollout | None = None
         self._datas: list[mujoco.MjData] = []
 
@@ -103,7 +103,7 @@ class OpenLoopRollouts(BatchedRollouts):
     def _place(self, model: mujoco.MjModel, data: mujoco.MjData, key: Hashable) -> None:
         """Places the task's objects in ``data``, the arm posed at the start (default: the keyframe's)."""
 
-    def _failed(self, reason: str) -> Any:
+    def failed(self, reason: str) -> Any:
         """The detail of a rollout that failed before or during simulation, for ``reason``."""
         raise NotImplementedError
 
@@ -151,8 +151,8 @@ class OpenLoopRollouts(BatchedRollouts):
         for _ in range(self.start_steps):
             mujoco.mj_step(model, data)
         data.time = 0.0
-        state = np.empty(mujoco.mj_stateSize(model, self._spec))
-        mujoco.mj_getState(model, data, state, self._spec)
+        state = np.empty(mujoco.mj_stateSize(model, self.state_spec))
+        mujoco.mj_getState(model, data, state, self.state_spec)
         return state
 
     # -- references ----------------------------------------------------------------------------------------
@@ -227,7 +227,7 @@ class OpenLoopRollouts(BatchedRollouts):
         taus = self.bounds.check(taus, n=len(positions))
         failures, violations = self.check_references(positions)
         rewards = FAILURE_REWARD * (1.0 + violations)
-        details = [self._failed(failure) for failure in failures]
+        details = [self.failed(failure) for failure in failures]
         run = [i for i, failure in enumerate(failures) if failure is None]
         if run:
             states, sensors = self._run(positions[run], velocities[run], taus[run])
@@ -241,7 +241,7 @@ class OpenLoopRollouts(BatchedRollouts):
         (d,); a rollout that did not stay sound gets ``FAILURE_REWARD``. A run's executor judges a motion by
         it too (:mod:`besman.sim.open_loop_executor`)."""
         if not self._sound(states[None], sensors[None])[0]:
-            return FAILURE_REWARD, self._failed(DIVERGED)
+            return FAILURE_REWARD, self.failed(DIVERGED)
         reward, detail = self._score(states, sensors, tau)
         return float(reward), detail
 
@@ -253,12 +253,12 @@ class OpenLoopRollouts(BatchedRollouts):
         positions, velocities = self.references(theta[None])
         failures, _ = self.check_references(positions)
         if failures[0] is not None:
-            return None, self._failed(failures[0])
+            return None, self.failed(failures[0])
         states, sensors = self._run(positions, velocities, tau)
         _, detail = self.judged(states[0], sensors[0], tau[0])
         return (None if detail.failure == DIVERGED else states[0, :, 1 : 1 + self.model.nq].copy()), detail
 
-    def _controls(self, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
+    def controls(self, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
         """Actuator commands (N, n_steps, nu): the reference at the step's end, led by its velocity."""
         controls = np.repeat(self._hold[None, None], len(positions), axis=0).repeat(self.n_steps, axis=1)
         controls[:, :, self.arm.actuator_indices] = positions[:, 1:] + self.lead * velocities[:, 1:]
@@ -271,8 +271,8 @@ class OpenLoopRollouts(BatchedRollouts):
         if self._pool is None:
             self._pool = rollout.Rollout(nthread=self._threads)
             self._datas = [mujoco.MjData(self.model) for _ in range(self._threads)]
-        controls = self._controls(positions, velocities)
-        nstate = mujoco.mj_stateSize(self.model, self._spec)
+        controls = self.controls(positions, velocities)
+        nstate = mujoco.mj_stateSize(self.model, self.state_spec)
         states = np.empty((len(keys), self.n_steps, nstate))
         sensors = np.empty((len(keys), self.n_steps, self.model.nsensordata))
         distinct = list(dict.fromkeys(keys))

@@ -5,7 +5,7 @@ The dynamic tasks that policy search runs open loop (ball-in-a-cup, the puck str
 joint-space DMP from rest in the task's start pose, tracked with the robot's velocity feedforward while the
 other actuators keep their commands. An :class:`OpenLoopExecutor` runs such a theta in the run's world
 exactly as the task's rollouts do (:func:`mujoco.rollout`): before each physics step the rollouts' control
-row for it (:meth:`~besman.sim.open_loop.OpenLoopRollouts._controls`), for the rollout's whole duration (the
+row for it (:meth:`~besman.sim.open_loop.OpenLoopRollouts.controls`), for the rollout's whole duration (the
 motion, then what it set going: a ball's flight, a puck's slide), from a zero warm start; after each step it
 records the full physics state (``mj_getState`` with the rollouts' own state spec, the time counted from
 the motion's start) and the sensor data, as MuJoCo's rollout records them. A state that is not finite ends
@@ -106,8 +106,8 @@ class OpenLoopExecutor(Executor):
         if failures[0] is not None:
             raise InputError(f"theta cannot be executed: {failures[0]}")
         model, data = self.world.model, self.world.data
-        controls = rollouts._controls(positions, velocities)[0]
-        nstate = mujoco.mj_stateSize(model, rollouts._spec)
+        controls = rollouts.controls(positions, velocities)[0]
+        nstate = mujoco.mj_stateSize(model, rollouts.state_spec)
         self.motion = None
         data.qacc_warmstart[:] = 0.0  # as the rollouts start
         self.open_loop = OpenLoopMotion(
@@ -124,7 +124,7 @@ class OpenLoopExecutor(Executor):
         motion = self.open_loop
         if motion is None or motion.status is not MotionStatus.RUNNING:
             return super().advance(cycles)
-        model, data, spec = self.world.model, self.world.data, self.rollouts._spec
+        model, data, spec = self.world.model, self.world.data, self.rollouts.state_spec
         for _ in range(cycles * self.substeps):
             row = motion.step
             data.ctrl[:] = motion.controls[row]
@@ -134,7 +134,7 @@ class OpenLoopExecutor(Executor):
             motion.sensors[row] = data.sensordata
             motion.step += 1
             if not np.isfinite(motion.states[row]).all():
-                motion.reward, motion.detail = FAILURE_REWARD, self.rollouts._failed(DIVERGED)
+                motion.reward, motion.detail = FAILURE_REWARD, self.rollouts.failed(DIVERGED)
                 break
             if motion.step == len(motion.controls):
                 motion.reward, motion.detail = self.rollouts.judged(motion.states, motion.sensors, motion.tau)

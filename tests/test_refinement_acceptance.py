@@ -31,6 +31,8 @@ def test_rollouts_that_reproduce_have_no_noise_any_gain_is_kept_and_no_tie_or_lo
     assert not judge([-0.5, -0.5], [-0.5, -0.5]).accepted
     assert not judge([-0.5, -0.5], [-0.6, -0.6]).accepted
     assert judge([-0.5], [-0.4]).noise == 0.0  # one evaluation: no spread measured
+    # Three equal rewards: their mean rounds (np.std gives 1.7e-17 for 0.1 three times), the noise is 0.
+    assert judge([0.1, 0.1, 0.1], [0.1, 0.1, 0.1 + 1e-16]).noise == 0.0
 
 
 @pytest.mark.parametrize(

@@ -56,6 +56,18 @@ def test_the_experiments_quick_run_writes_json_plots_and_a_pool(tmp_path):
     assert results["experiment"] == study.experiment and results["config"]["k"] == 4
     summary = results["summary"]
     assert 0.0 <= summary["zero_shot_rate"] <= summary["refined_rate"] <= 1.0
+    # Every refinement judged (item 1 of issue 54): the rollouts are deterministic (noise 0), a search that
+    # found a success is kept (so is one that only gained reward), and the theta kept succeeds again
+    # exactly where the search found a success.
+    (final,) = [e for e in results["templates"][0]["per_k"] if e["k"] == 4]
+    verdicts = final["refinement_verdicts"]
+    assert [v["tau_index"] for v in verdicts] == np.flatnonzero(np.logical_not(final["zero_shot"])).tolist()
+    assert verdicts and all(v["noise"] == 0.0 and v["evaluations"] == 3 for v in verdicts)
+    assert all(v["accepted"] == (v["improvement"] > 0) for v in verdicts)
+    assert all(v["accepted"] for v in verdicts if final["refined"][v["tau_index"]])
+    assert not all(v["accepted"] for v in verdicts)  # a search that found nothing better is not kept
+    assert final["kept_succeeds_again"] == final["refined"] and summary["kept_succeed_again_where_refined"]
+    assert summary["refinements"] == len(verdicts)
     for name in results["baselines"]:
         assert len(results[name]) == len(results["held_out"]) == 8
     assert (tmp_path / "learning_curves.png").stat().st_size > 0

@@ -47,13 +47,21 @@ def test_the_quick_experiment_writes_results_and_figures_and_resumes(quick_run, 
     out, stdout = quick_run
     results = json.loads((out / "results.json").read_text())
     config = results["config"]
-    assert results["schema_version"] == 4 and config["grid"] == 3
+    assert results["schema_version"] == 5 and config["grid"] == 3
     ks = [str(k) for k in config["ks"]]
     assert set(results["zero_shot"]) == set(results["validation"]) == set(ZERO_SHOT_METHODS)
     for by_k in (*results["zero_shot"].values(), results["template_refined"]):
         assert list(by_k) == ks
         for s in by_k.values():
             assert s["count"] == 9 and 0 <= s["failed"] <= 9 and s["mean"] > 0 and s["median"] > 0
+    # Every refinement judged: throws reproduce (noise 0), and a search keeps its best only where it beat
+    # the start (never worse: the start is its rollout 0).
+    verdicts = results["template_refinement_verdicts"]
+    assert list(verdicts) == ks
+    for v in verdicts.values():
+        assert v["searches"] == 9 and 0 <= v["kept"] <= 9
+        assert v["noise_max"] == 0 and v["improvement_mean"] >= 0
+    assert any(v["kept"] for v in verdicts.values())
     for by_k in results["validation"].values():  # 1 + 1 held-out targets, one on the box's edge
         assert list(by_k) == ks and all(s["count"] == 2 for s in by_k.values())
     # Every proposal was guarded: the guard's work is counted for every zero-shot method and K.

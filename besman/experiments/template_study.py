@@ -40,7 +40,11 @@ and none chosen on the held-out taus:
    ties to the first; with fewer than 3 tasks the study's ``few_tasks_kernel``.
 4. **Evaluation** on the held-out taus, per seed and K: zero shot (the template's mean, one rollout) and,
    where that misses, refinement by CMA-ES from N(Theta(tau), Omega(tau)) with the study's
-   ``refine_population`` for ``refine_budget`` more rollouts, stopped at the first success.
+   ``refine_population`` for ``refine_budget`` more rollouts, stopped at the first success. Each refinement
+   is judged (:func:`~besman.learning.search.acceptance.judge`): its start and its best theta evaluated
+   :data:`REEVALUATIONS` more times, paired, beside the search's own rewards of them; the best is kept only
+   where its improvement exceeds the noise (the spread of the start's rewards), and the theta kept must
+   succeed again exactly where the search found a success.
 
 Everything is seeded and the rollouts are deterministic: the same command writes the same numbers (apart from
 the wall times). Every search's seed is derived from the run's seed, its stage and its keys
@@ -61,6 +65,7 @@ import numpy as np
 from besman import examples
 from besman.core.errors import InputError
 from besman.core.seeds import child_seed
+from besman.learning.search.acceptance import judge
 from besman.learning.search.contextual import (
     ContextBox,
     ContextualCMAES,
@@ -77,9 +82,11 @@ from besman.skills.shared_kernel import SharedKernel
 from besman.skills.template import SkillTemplate
 from besman.tasks import task as registered
 
-SCHEMA_VERSION = 2  # 2: the keys of any tau (held_out, single.taus, training_taus), not a length's
+# 2: the keys of any tau (held_out, single.taus, training_taus), not a length's; 3: each refinement's verdict
+SCHEMA_VERSION = 3
 HELD_OUT_SEED = 1
 TRAINING_SEED = 10  # + the seed: the training taus' Latin hypercube
+REEVALUATIONS = 2  # more evaluations of each refinement's start and best theta, for its verdict
 # The searches' seeds: child_seed(seed, STAGE, its keys), unrelated between stages, seeds, K and tasks.
 SINGLE, TRAINING, JOINT_POLICY, JOINT_CONTEXTS, REFINEMENT = range(1, 6)
 
@@ -478,10 +485,12 @@ class Experiment:
     def evaluate_template(self, template: SkillTemplate, seed: int, k: int) -> dict:
         taus = self.held_out
         means = template.predict(taus)[0]
-        zero = successes(self.evaluate(means, taus, "zero shot"))
-        refined = zero.copy()
+        zero_shot = self.evaluate(means, taus, "zero shot")
+        zero = successes(zero_shot)
+        refined, again = zero.copy(), zero.copy()
         spent = np.zeros(len(taus), dtype=int)
         misses = np.flatnonzero(~zero)
+        verdicts = []
         if misses.size:
             budget = self.config.refine_budget
             optimizers = []
@@ -503,20 +512,49 @@ class Experiment:
                     succeeded.setdefault(int(owner), []).append(bool(s))
                 return evaluation.rewards
 
-            policy_search(objective, optimizers, budget=budget, evaluate_start=False, target_reward=SUCCESS)
+            searched = policy_search(
+                objective, optimizers, budget=budget, evaluate_start=False, target_reward=SUCCESS
+            )
             for owner, i in enumerate(misses):
                 tries = succeeded.get(owner, [])[:budget]
                 refined[i] = any(tries)
                 spent[i] = (tries.index(True) + 1) if any(tries) else len(tries)
+            verdicts, again[misses] = self.verdicts(
+                means[misses], zero_shot.rewards[misses], searched, taus[misses]
+            )
         return {
             "seed": seed,
             "k": k,
             "zero_shot": zero.astype(int).tolist(),
             "refined": refined.astype(int).tolist(),
             "refinement_rollouts": spent.tolist(),
+            "refinement_verdicts": [
+                {"tau_index": int(i), **verdict} for i, verdict in zip(misses, verdicts, strict=True)
+            ],
+            "kept_succeeds_again": again.astype(int).tolist(),
             "zero_shot_rate": float(zero.mean()),
             "refined_rate": float(refined.mean()),
         }
+
+    def verdicts(self, starts, start_rewards, searched, taus) -> tuple[list[dict], np.ndarray]:
+        """Each refinement's verdict (module documentation, step 4): the ``starts`` (whose rewards were
+        ``start_rewards``) and the ``searched`` results' best thetas evaluated :data:`REEVALUATIONS` more
+        times at their ``taus`` in one batch; and whether the theta kept succeeded on its last evaluation."""
+        bests = np.array([result.best_theta for result in searched])
+        repeated = np.repeat(taus, REEVALUATIONS, axis=0)
+        evaluation = self.evaluate(
+            np.repeat(np.concatenate([starts, bests]), REEVALUATIONS, axis=0),
+            np.concatenate([repeated, repeated]),
+            "refinement verdicts",
+        )
+        shape = (2, len(starts), REEVALUATIONS)
+        rewards, caught = evaluation.rewards.reshape(shape), successes(evaluation).reshape(shape)
+        verdicts, kept = [], []
+        for i, result in enumerate(searched):
+            verdict = judge([start_rewards[i], *rewards[0, i]], [result.best_reward, *rewards[1, i]])
+            verdicts.append(verdict.to_json())
+            kept.append(caught[int(verdict.accepted), i, -1])
+        return verdicts, np.array(kept)
 
     # -- the whole run --------------------------------------------------------------------------------------
 
@@ -587,6 +625,7 @@ def summarise(results: dict) -> dict:
     refined_spent = [
         r for e in finals for r, z in zip(e["refinement_rollouts"], e["zero_shot"], strict=True) if not z
     ]
+    verdicts = [v for e in finals for v in e["refinement_verdicts"]]
     single = results["single"]["taus"]
     middle = single[len(single) // 2]
     return {
@@ -597,6 +636,10 @@ def summarise(results: dict) -> dict:
         "refined_rate_per_seed": [e["refined_rate"] for e in finals],
         "refined_rate": float(np.mean([e["refined_rate"] for e in finals])),
         "refinement_rollouts_of_misses_mean": float(np.mean(refined_spent)) if refined_spent else 0.0,
+        "refinements": len(verdicts),
+        "refinements_kept": sum(v["accepted"] for v in verdicts),
+        "refinement_noise_max": max((v["noise"] for v in verdicts), default=0.0),
+        "kept_succeed_again_where_refined": all(e["kept_succeeds_again"] == e["refined"] for e in finals),
         "single_tau": middle["tau"],
         "single_mean_rollouts_to_first_success": middle["mean_rollouts_to_first_success"],
         "single_all": [[entry["tau"], entry["mean_rollouts_to_first_success"]] for entry in single],
@@ -621,6 +664,11 @@ def report(results: dict) -> str:
         f"template, K = {s['k']}: zero shot {[f'{r:.0%}' for r in s['zero_shot_rate_per_seed']]} "
         f"(mean {s['zero_shot_rate']:.1%}); after <= {results['config']['refine_budget']} more rollouts "
         f"{[f'{r:.0%}' for r in s['refined_rate_per_seed']]} (mean {s['refined_rate']:.1%})"
+    )
+    lines.append(
+        f"refinements judged: {s['refinements_kept']} of {s['refinements']} kept (improvement > noise; noise "
+        f"{s['refinement_noise_max']:.3g} at most); the theta kept succeeds again exactly where refined: "
+        + ("yes" if s["kept_succeed_again_where_refined"] else "NO")
     )
     lines.append(f"rollouts {results['rollouts']}, {results['minutes']} min")
     return "\n".join(lines)

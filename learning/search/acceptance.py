@@ -52,7 +52,8 @@ def judge(start_rewards, refined_rewards) -> Acceptance:
     if not (np.isfinite(start).all() and np.isfinite(refined).all()):
         raise InputError("a reward of the evaluations is not finite: impute failures before judging")
     improvement = float(np.mean(refined - start))
-    noise = float(np.std(start, ddof=1)) if len(start) > 1 else 0.0
+    # Equal rewards have no noise (the std of equal floats can come out 1e-17: their mean is rounded).
+    noise = float(np.std(start, ddof=1)) if len(start) > 1 and np.ptp(start) > 0 else 0.0
     return Acceptance(improvement, noise, len(start), improvement > noise)
 
 

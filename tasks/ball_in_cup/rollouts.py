@@ -170,7 +170,7 @@ class BallInCupRollouts(OpenLoopRollouts):
         data.qpos[address : address + 3] = data.site("knot").xpos - [0.0, 0.0, length]
         data.qpos[address + 3 : address + 7] = [1.0, 0.0, 0.0, 0.0]
 
-    def _failed(self, reason: str) -> CatchDetail:
+    def failed(self, reason: str) -> CatchDetail:
         return CatchDetail(False, None, None, None, reason)
 
     def _score(self, states: np.ndarray, sensors: np.ndarray, tau: np.ndarray) -> tuple[float, CatchDetail]:

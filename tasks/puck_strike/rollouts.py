@@ -148,7 +148,7 @@ class PuckStrikeRollouts(OpenLoopRollouts):
 
     # -- what is the puck strike's -------------------------------------------------------------------------
 
-    def _failed(self, reason: str) -> StrikeDetail:
+    def failed(self, reason: str) -> StrikeDetail:
         return StrikeDetail(False, None, None, False, False, reason)
 
     def _sound(self, states: np.ndarray, sensors: np.ndarray) -> np.ndarray:

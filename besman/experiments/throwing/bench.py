@@ -13,6 +13,7 @@ import numpy as np
 from tqdm import tqdm
 
 from besman.experiments.throwing.config import TASK_OF_VARIANT, ExperimentConfig
+from besman.learning.search.acceptance import judge
 from besman.learning.search.feasibility import pull_back
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.skills import zero_shot
@@ -20,6 +21,7 @@ from besman.tasks import task
 from besman.tasks.throwing.rollouts import ThrowingRollouts
 
 BATCH = 256  # rollouts per evaluate() call: the rollout's state buffers grow with the batch
+REEVALUATIONS = 2  # more throws of a refinement's start and best theta, for its verdict
 VALIDATION_SEED = 20_141_000  # the validation targets: their own seed, never a grid
 
 
@@ -135,6 +137,24 @@ class ThrowingBench:
         with self.bar(description, total) as bar:
             bar.update(len(starts))
             return policy_search(objective, optimizers, budget=budget, progress=bar.update)
+
+    def verdicts(self, starts: list[WarmStart], results, taus: np.ndarray) -> dict[str, np.ndarray]:
+        """Each search's verdict (:func:`~besman.learning.search.acceptance.judge`): its start mean and its
+        best theta thrown :data:`REEVALUATIONS` more times at its tau (one batch), beside the search's own
+        rewards of them. Arrays of the improvement, the noise and whether the best is kept."""
+        thetas = np.concatenate([[start.mean for start in starts], [r.best_theta for r in results]])
+        repeated = np.repeat(taus, REEVALUATIONS, axis=0)
+        again = self.rewards(np.repeat(thetas, REEVALUATIONS, axis=0), np.concatenate([repeated, repeated]))
+        again = again.reshape(2, len(starts), REEVALUATIONS)
+        verdicts = [
+            judge([r.start_reward, *again[0, i]], [r.best_reward, *again[1, i]])
+            for i, r in enumerate(results)
+        ]
+        return {
+            "refinement_improvement": np.array([v.improvement for v in verdicts]),
+            "refinement_noise": np.array([v.noise for v in verdicts]),
+            "refinement_accepted": np.array([v.accepted for v in verdicts]),
+        }
 
     def curves(self, description: str, starts: list[WarmStart], taus: np.ndarray, seed: int) -> np.ndarray:
         """(targets, curve_rollouts + 1) distances of the best rollout so far."""

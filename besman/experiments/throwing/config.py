@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from besman.core.errors import InputError
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5  # 5: each refinement's verdict in the stages of K
 # "template" is the paper's (Metzen et al. 2014), "outcome_template" besman's own.
 ZERO_SHOT_METHODS = (
     "template",

@@ -38,7 +38,8 @@ class GridEvaluation:
     def per_k(self, seed: int, k: int) -> dict[str, np.ndarray]:
         """Every zero-shot method's distances at K = k on the grid and (``validation_*``) at the validation
         targets, each prediction guarded (``pulled_back_*``: how many the guard moved), and the template
-        refined by CMA-ES from its guarded prediction."""
+        refined by CMA-ES from its guarded prediction, each refinement judged (``refinement_*``:
+        :meth:`~besman.experiments.throwing.bench.ThrowingBench.verdicts`)."""
 
         def compute():
             bench, grid = self.bench, self.bench.grid
@@ -65,7 +66,8 @@ class GridEvaluation:
             budget = bench.config.refine_rollouts
             results = bench.search(f"seed {seed}: K={k} refinement", starts, grid, budget, seed + 7 * k)
             refined = [r.curve()[min(budget, r.rollouts), 2] for r in results]
-            return {**arrays, "refined": distances_of(np.array(refined))}
+            verdicts = bench.verdicts(starts, results, grid)
+            return {**arrays, "refined": distances_of(np.array(refined)), **verdicts}
 
         return self.folder.stage(f"seed{seed}_k{k}", compute)
 

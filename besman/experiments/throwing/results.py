@@ -39,7 +39,7 @@ def collect_results(stages: Stages) -> dict:
     evaluation = stages.evaluation
     no_learning = np.tile(evaluation.no_learning(), config.seeds)
     zero, validation, pulled_back = ({m: {} for m in ZERO_SHOT_METHODS} for _ in range(3))
-    refined, costs = {}, {}
+    refined, verdicts, costs = {}, {}, {}
     for k in config.ks:
         runs = [evaluation.per_k(seed, k) for seed in seeds]
         for method in ZERO_SHOT_METHODS:
@@ -47,6 +47,12 @@ def collect_results(stages: Stages) -> dict:
             validation[method][k] = np.concatenate([s[f"validation_{method}"] for s in runs])
             pulled_back[method][k] = int(sum(int(s[f"pulled_back_{method}"]) for s in runs))
         refined[k] = np.concatenate([s["refined"] for s in runs])
+        verdicts[k] = {
+            "searches": int(sum(len(s["refinement_accepted"]) for s in runs)),
+            "kept": int(sum(int(s["refinement_accepted"].sum()) for s in runs)),
+            "improvement_mean": float(np.mean([s["refinement_improvement"] for s in runs])),
+            "noise_max": float(max(s["refinement_noise"].max() for s in runs)),
+        }
         costs[k] = _cost(stages, k, "training")
     curves = {m: np.concatenate([stages.curves.curves(seed, m) for seed in seeds]) for m in CURVE_METHODS}
     outcome_refinement = np.concatenate([stages.curves.outcome_refinement(seed) for seed in seeds])
@@ -100,6 +106,8 @@ def collect_results(stages: Stages) -> dict:
             "variants": variants_pulled_back,
         },
         "template_refined": {str(k): summary(v) for k, v in refined.items()},
+        # per K: the refinements judged, how many kept their best (improvement > noise), the noise's largest
+        "template_refinement_verdicts": {str(k): v for k, v in verdicts.items()},
         "curves": {
             m: [[r, *summary(v[:, r]).values()] for r in range(v.shape[1])] for m, v in curves.items()
         },
