@@ -67,6 +67,24 @@ def test_the_learning_curve_records_every_rollout_and_the_best_so_far():
     assert curve[0, 1] == result.start_reward
 
 
+def test_the_best_within_a_budget_ignores_the_last_generations_overshoot():
+    """A search's last generation may pass its budget; the best within the budget is the curve's at it."""
+    seen = []
+
+    def later_is_better(thetas, owners):  # each rollout scores its own index: the last one is the best
+        seen.extend(thetas)
+        return np.arange(len(seen) - len(thetas), len(seen), dtype=float)
+
+    result = policy_search(later_is_better, [CMAES(WarmStart(np.zeros(10), 0.5), seed=0)], budget=12)[0]
+    assert result.rollouts == 20 and len(result.thetas) == 20  # two generations of 10
+    np.testing.assert_array_equal(result.start_theta, np.zeros(10))
+    theta, reward = result.best_within(12)
+    assert reward == result.curve()[12, 2] == 12.0 < result.best_reward == 20.0
+    np.testing.assert_array_equal(theta, seen[12])
+    np.testing.assert_array_equal(result.best_within(0)[0], result.start_theta)
+    np.testing.assert_array_equal(result.best_within(20)[0], result.best_theta)
+
+
 def test_optimisers_run_in_lockstep_with_one_batch_per_generation():
     batches = []
 

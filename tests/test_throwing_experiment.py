@@ -62,6 +62,13 @@ def test_the_quick_experiment_writes_results_and_figures_and_resumes(quick_run, 
         assert v["searches"] == 9 and 0 <= v["kept"] <= 9
         assert v["noise_max"] == 0 and v["improvement_mean"] >= 0
     assert any(v["kept"] for v in verdicts.values())
+    # Each verdict judges the best within the budget (12 rollouts of a generation of 17): the reward it gained
+    # is the squared distance from the start's (the zero-shot template's throw) to the refined one's.
+    for k in ks:
+        stage = np.load(out / "work" / f"seed0_k{k}.npz")
+        gained = stage["zero_shot_template"] ** 2 - stage["refined"] ** 2
+        np.testing.assert_allclose(stage["refinement_improvement"], gained, atol=1e-9, err_msg=k)
+        np.testing.assert_array_equal(stage["refinement_accepted"], gained > 0, err_msg=k)
     for by_k in results["validation"].values():  # 1 + 1 held-out targets, one on the box's edge
         assert list(by_k) == ks and all(s["count"] == 2 for s in by_k.values())
     # Every proposal was guarded: the guard's work is counted for every zero-shot method and K.

@@ -41,10 +41,10 @@ and none chosen on the held-out taus:
 4. **Evaluation** on the held-out taus, per seed and K: zero shot (the template's mean, one rollout) and,
    where that misses, refinement by CMA-ES from N(Theta(tau), Omega(tau)) with the study's
    ``refine_population`` for ``refine_budget`` more rollouts, stopped at the first success. Each refinement
-   is judged (:func:`~besman.learning.search.acceptance.judge`): its start and its best theta evaluated
-   :data:`REEVALUATIONS` more times, paired, beside the search's own rewards of them; the best is kept only
-   where its improvement exceeds the noise (the spread of the start's rewards), and the theta kept must
-   succeed again exactly where the search found a success.
+   is judged (:func:`~besman.learning.search.acceptance.judge`): its start and its best theta within the
+   budget evaluated :data:`REEVALUATIONS` more times, paired, beside the search's own rewards of them; the
+   best is kept only where its improvement exceeds the noise (the spread of the start's rewards), and whether
+   the theta kept succeeds again exactly where the search found a success is reported.
 
 Everything is seeded and the rollouts are deterministic: the same command writes the same numbers (apart from
 the wall times). Every search's seed is derived from the run's seed, its stage and its keys
@@ -519,8 +519,9 @@ class Experiment:
                 tries = succeeded.get(owner, [])[:budget]
                 refined[i] = any(tries)
                 spent[i] = (tries.index(True) + 1) if any(tries) else len(tries)
+            bests = [result.best_within(budget) for result in searched]
             verdicts, again[misses] = self.verdicts(
-                means[misses], zero_shot.rewards[misses], searched, taus[misses]
+                means[misses], zero_shot.rewards[misses], bests, taus[misses]
             )
         return {
             "seed": seed,
@@ -536,11 +537,13 @@ class Experiment:
             "refined_rate": float(refined.mean()),
         }
 
-    def verdicts(self, starts, start_rewards, searched, taus) -> tuple[list[dict], np.ndarray]:
+    def verdicts(self, starts, start_rewards, bests, taus) -> tuple[list[dict], np.ndarray]:
         """Each refinement's verdict (module documentation, step 4): the ``starts`` (whose rewards were
-        ``start_rewards``) and the ``searched`` results' best thetas evaluated :data:`REEVALUATIONS` more
-        times at their ``taus`` in one batch; and whether the theta kept succeeded on its last evaluation."""
-        bests = np.array([result.best_theta for result in searched])
+        ``start_rewards``) and the searches' ``bests`` within their budget ((theta, reward) pairs) evaluated
+        :data:`REEVALUATIONS` more times at their ``taus`` in one batch; and whether the theta kept succeeded
+        on its last evaluation."""
+        best_rewards = [reward for _, reward in bests]
+        bests = np.array([theta for theta, _ in bests])
         repeated = np.repeat(taus, REEVALUATIONS, axis=0)
         evaluation = self.evaluate(
             np.repeat(np.concatenate([starts, bests]), REEVALUATIONS, axis=0),
@@ -550,8 +553,8 @@ class Experiment:
         shape = (2, len(starts), REEVALUATIONS)
         rewards, caught = evaluation.rewards.reshape(shape), successes(evaluation).reshape(shape)
         verdicts, kept = [], []
-        for i, result in enumerate(searched):
-            verdict = judge([start_rewards[i], *rewards[0, i]], [result.best_reward, *rewards[1, i]])
+        for i, best in enumerate(best_rewards):
+            verdict = judge([start_rewards[i], *rewards[0, i]], [best, *rewards[1, i]])
             verdicts.append(verdict.to_json())
             kept.append(caught[int(verdict.accepted), i, -1])
         return verdicts, np.array(kept)

@@ -302,8 +302,9 @@ class SearchResult:
 
     Attributes:
         best_theta, best_reward: the best rollout's theta and reward.
-        rewards: the reward of every rollout, in order.
-        start_reward: the reward of the start mean (rollout 0, not counted in the budget), if evaluated.
+        rewards, thetas: the reward and theta of every rollout, in order.
+        start_theta, start_reward: the start mean and its reward (rollout 0, not counted in the budget), if
+            evaluated.
         stopped: why the search ended.
     """
 
@@ -312,6 +313,8 @@ class SearchResult:
     rewards: list[float] = field(default_factory=list)
     start_reward: float | None = None
     stopped: str = ""
+    thetas: list[np.ndarray] = field(default_factory=list)
+    start_theta: np.ndarray | None = None
 
     @property
     def rollouts(self) -> int:
@@ -323,6 +326,14 @@ class SearchResult:
         rewards = np.array([np.nan if self.start_reward is None else self.start_reward, *self.rewards])
         best = np.fmax.accumulate(rewards)
         return np.column_stack([np.arange(len(rewards)), rewards, best])
+
+    def best_within(self, budget: int) -> tuple[np.ndarray, float]:
+        """The best theta and reward of the start (if evaluated) and the first ``budget`` rollouts: the
+        search as its budget counts it (its last generation may pass the budget; :meth:`curve` at row
+        ``budget``)."""
+        rewards = [-math.inf if self.start_reward is None else self.start_reward, *self.rewards[:budget]]
+        best = int(np.argmax(rewards))
+        return (self.start_theta if best == 0 else self.thetas[best - 1]), float(rewards[best])
 
 
 Objective = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -354,7 +365,7 @@ def policy_search(
     early when a rollout reaches ``target_reward`` or its own stopping rule fires; ``progress`` is called with
     the number of rollouts of each batch.
     """
-    results = [SearchResult(opt.mean.copy(), -math.inf) for opt in optimizers]
+    results = [SearchResult(opt.mean.copy(), -math.inf, start_theta=opt.mean.copy()) for opt in optimizers]
     if evaluate_start:
         means = np.array([opt.mean for opt in optimizers])
         rewards = _checked(objective(means, np.arange(len(optimizers))), len(optimizers))
@@ -373,6 +384,7 @@ def policy_search(
             optimizers[i].tell(population, mine)
             result = results[i]
             result.rewards.extend(mine.tolist())
+            result.thetas.extend(np.array(population, dtype=float))
             best = int(np.argmax(mine))
             if mine[best] > result.best_reward:
                 result.best_reward, result.best_theta = float(mine[best]), population[best].copy()

@@ -138,17 +138,21 @@ class ThrowingBench:
             bar.update(len(starts))
             return policy_search(objective, optimizers, budget=budget, progress=bar.update)
 
-    def verdicts(self, starts: list[WarmStart], results, taus: np.ndarray) -> dict[str, np.ndarray]:
+    def verdicts(
+        self, starts: list[WarmStart], results, taus: np.ndarray, budget: int
+    ) -> dict[str, np.ndarray]:
         """Each search's verdict (:func:`~besman.learning.search.acceptance.judge`): its start mean and its
-        best theta thrown :data:`REEVALUATIONS` more times at its tau (one batch), beside the search's own
-        rewards of them. Arrays of the improvement, the noise and whether the best is kept."""
-        thetas = np.concatenate([[start.mean for start in starts], [r.best_theta for r in results]])
+        best theta within ``budget`` rollouts (:meth:`~besman.learning.search.policy_search.SearchResult.
+        best_within`) thrown :data:`REEVALUATIONS` more times at its tau (one batch), beside the search's
+        own rewards of them. Arrays of the improvement, the noise and whether the best is kept."""
+        bests = [r.best_within(budget) for r in results]
+        thetas = np.concatenate([[start.mean for start in starts], [theta for theta, _ in bests]])
         repeated = np.repeat(taus, REEVALUATIONS, axis=0)
         again = self.rewards(np.repeat(thetas, REEVALUATIONS, axis=0), np.concatenate([repeated, repeated]))
         again = again.reshape(2, len(starts), REEVALUATIONS)
         verdicts = [
-            judge([r.start_reward, *again[0, i]], [r.best_reward, *again[1, i]])
-            for i, r in enumerate(results)
+            judge([r.start_reward, *again[0, i]], [best, *again[1, i]])
+            for i, (r, (_, best)) in enumerate(zip(results, bests, strict=True))
         ]
         return {
             "refinement_improvement": np.array([v.improvement for v in verdicts]),

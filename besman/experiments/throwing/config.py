@@ -76,7 +76,7 @@ class ExperimentConfig:
             ks=(1, 2, 4),
             training_rollouts=17,
             grid=3,
-            refine_rollouts=17,
+            refine_rollouts=12,  # passed by CMA-ES's one generation of 17: the best within the budget counts
             curve_k=4,
             curve_rollouts=17,
             spreads=(0.1, 1.0),

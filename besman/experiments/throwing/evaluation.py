@@ -66,7 +66,7 @@ class GridEvaluation:
             budget = bench.config.refine_rollouts
             results = bench.search(f"seed {seed}: K={k} refinement", starts, grid, budget, seed + 7 * k)
             refined = [r.curve()[min(budget, r.rollouts), 2] for r in results]
-            verdicts = bench.verdicts(starts, results, grid)
+            verdicts = bench.verdicts(starts, results, grid, budget)
             return {**arrays, "refined": distances_of(np.array(refined)), **verdicts}
 
         return self.folder.stage(f"seed{seed}_k{k}", compute)
