@@ -7,6 +7,7 @@ rollouts, execution) and ``besman.trees`` (behaviour trees); ``besman.cli`` is t
 commands in ``besman.commands``, a module per family).
 """
 
+import os
 import signal
 import sys
 
@@ -37,4 +38,21 @@ def main() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if signal.getsignal(signal.SIGTERM) is stop_after_imports:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if "pyarrow" in sys.modules:
+        _end_before_teardown(code)
     return code
+
+
+def _end_before_teardown(code: int) -> None:
+    """Ends the process once the command has ended, after what Python's teardown runs first (non-daemon
+    threads joined, atexit handlers, the streams flushed) but before the native libraries' static teardown:
+    there pyarrow's thread pools abort the process now and then ("terminate called without an active
+    exception", exit -6; apache/arrow#34314, open), after a command that read a dataset had said all."""
+    import atexit
+    import threading
+
+    threading._shutdown()  # what the interpreter's finalisation does first: join the non-daemon threads
+    atexit._run_exitfuncs()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
