@@ -95,3 +95,24 @@ def test_python_dash_m_besman(tmp_path):
         [sys.executable, "-m", "besman", "robots"], capture_output=True, text=True, cwd=tmp_path, check=True
     )
     assert result.stdout.startswith("aila")
+
+
+def test_a_command_that_used_pyarrow_ends_the_process_before_the_native_teardown(tmp_path):
+    """Where pyarrow is loaded, ``besman.main`` ends the process itself once the command has ended (pyarrow's
+    thread pools abort the native teardown now and then: apache/arrow#34314): first what Python's teardown
+    does first (a running thread joined, the atexit handlers), with the command's exit code; the teardown
+    itself never runs (an object it would finalise says nothing)."""
+    code = (
+        "import atexit, sys, threading, time, pyarrow, besman\n"
+        "class Finalised:\n"
+        "    def __del__(self):\n"
+        "        print('torn down', flush=True)\n"
+        "kept = Finalised()\n"
+        "threading.Thread(target=lambda: (time.sleep(0.2), print('thread joined', flush=True))).start()\n"
+        "atexit.register(lambda: print('atexit ran', flush=True))\n"
+        "sys.argv = ['besman', 'dataset', 'show', sys.argv[1]]\n"
+        "sys.exit(besman.main())\n"
+    )
+    ended = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True)
+    assert ended.returncode == 2 and "not a LeRobot dataset" in ended.stderr, ended.stderr
+    assert ended.stdout.splitlines() == ["thread joined", "atexit ran"]
