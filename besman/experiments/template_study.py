@@ -65,7 +65,7 @@ import numpy as np
 from besman import examples
 from besman.core.errors import InputError
 from besman.core.seeds import child_seed
-from besman.learning.search.acceptance import judge
+from besman.learning.search.acceptance import reevaluated_searches
 from besman.learning.search.contextual import (
     ContextBox,
     ContextualCMAES,
@@ -542,21 +542,19 @@ class Experiment:
         ``start_rewards``) and the searches' ``bests`` within their budget ((theta, reward) pairs) evaluated
         :data:`REEVALUATIONS` more times at their ``taus`` in one batch; and whether the theta kept succeeded
         on its last evaluation."""
-        best_rewards = [reward for _, reward in bests]
-        bests = np.array([theta for theta, _ in bests])
-        repeated = np.repeat(taus, REEVALUATIONS, axis=0)
-        evaluation = self.evaluate(
-            np.repeat(np.concatenate([starts, bests]), REEVALUATIONS, axis=0),
-            np.concatenate([repeated, repeated]),
-            "refinement verdicts",
-        )
-        shape = (2, len(starts), REEVALUATIONS)
-        rewards, caught = evaluation.rewards.reshape(shape), successes(evaluation).reshape(shape)
-        verdicts, kept = [], []
-        for i, best in enumerate(best_rewards):
-            verdict = judge([start_rewards[i], *rewards[0, i]], [best, *rewards[1, i]])
-            verdicts.append(verdict.to_json())
-            kept.append(caught[int(verdict.accepted), i, -1])
+        caught = []
+
+        def evaluate(thetas, owners):
+            evaluation = self.evaluate(thetas, taus[owners], "refinement verdicts")
+            caught.extend(successes(evaluation))
+            return evaluation.rewards
+
+        searched = [(start, best) for start, (_, best) in zip(start_rewards, bests, strict=True)]
+        thetas = np.array([theta for theta, _ in bests])
+        judged = reevaluated_searches(evaluate, starts, thetas, searched, REEVALUATIONS)
+        caught = np.reshape(caught, (2, len(starts), REEVALUATIONS))
+        verdicts = [verdict.to_json() for verdict in judged]
+        kept = [caught[int(verdict.accepted), i, -1] for i, verdict in enumerate(judged)]
         return verdicts, np.array(kept)
 
     # -- the whole run --------------------------------------------------------------------------------------

@@ -70,3 +70,17 @@ def reevaluated(
     again = np.asarray(evaluate(np.repeat([start, best], repeats, axis=0)), dtype=float)
     before, after = ([searched[0]], [searched[1]]) if searched is not None else ([], [])
     return judge([*before, *again[:repeats]], [*after, *again[repeats:]])
+
+
+def reevaluated_searches(
+    evaluate: Callable[[np.ndarray, np.ndarray], np.ndarray], starts, bests, searched, repeats: int
+) -> list[Acceptance]:
+    """:func:`reevaluated` for many searches in one batch: ``starts`` and ``bests`` (N, n) each evaluated
+    ``repeats`` times more, ``evaluate(thetas, owners) -> rewards`` evaluating each theta at the task of
+    search ``owners[i]`` (the starts' evaluations first, then the bests'), beside ``searched`` ((start's,
+    best's reward) per search)."""
+    count = len(starts)
+    owners = np.tile(np.repeat(np.arange(count), repeats), 2)
+    thetas = np.repeat(np.concatenate([starts, bests]), repeats, axis=0)
+    again = np.asarray(evaluate(thetas, owners), dtype=float).reshape(2, count, repeats)
+    return [judge([start, *again[0, i]], [best, *again[1, i]]) for i, (start, best) in enumerate(searched)]

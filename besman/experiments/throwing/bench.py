@@ -13,7 +13,7 @@ import numpy as np
 from tqdm import tqdm
 
 from besman.experiments.throwing.config import TASK_OF_VARIANT, ExperimentConfig
-from besman.learning.search.acceptance import judge
+from besman.learning.search.acceptance import reevaluated_searches
 from besman.learning.search.feasibility import pull_back
 from besman.learning.search.policy_search import WarmStart, make_optimizer, policy_search
 from besman.skills import zero_shot
@@ -146,14 +146,13 @@ class ThrowingBench:
         best_within`) thrown :data:`REEVALUATIONS` more times at its tau (one batch), beside the search's
         own rewards of them. Arrays of the improvement, the noise and whether the best is kept."""
         bests = [r.best_within(budget) for r in results]
-        thetas = np.concatenate([[start.mean for start in starts], [theta for theta, _ in bests]])
-        repeated = np.repeat(taus, REEVALUATIONS, axis=0)
-        again = self.rewards(np.repeat(thetas, REEVALUATIONS, axis=0), np.concatenate([repeated, repeated]))
-        again = again.reshape(2, len(starts), REEVALUATIONS)
-        verdicts = [
-            judge([r.start_reward, *again[0, i]], [best, *again[1, i]])
-            for i, (r, (_, best)) in enumerate(zip(results, bests, strict=True))
-        ]
+        verdicts = reevaluated_searches(
+            lambda thetas, owners: self.rewards(thetas, taus[owners]),
+            np.array([start.mean for start in starts]),
+            np.array([theta for theta, _ in bests]),
+            [(r.start_reward, best) for r, (_, best) in zip(results, bests, strict=True)],
+            REEVALUATIONS,
+        )
         return {
             "refinement_improvement": np.array([v.improvement for v in verdicts]),
             "refinement_noise": np.array([v.noise for v in verdicts]),
