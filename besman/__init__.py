@@ -22,7 +22,8 @@ __all__ = ["__version__", "main", "stopped"]
 
 def main() -> int:
     """The ``besman`` command: the command line (:mod:`besman.cli`), imported here so that a Ctrl-C or a
-    SIGTERM while it loads ends with one line too."""
+    SIGTERM while it loads ends with one line too; once the command has ended, so does the process
+    (:func:`_end_before_teardown`)."""
     sys.unraisablehook = ctrl_c_again(sys.unraisablehook)
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not where Ctrl-C is ignored
         signal.signal(signal.SIGINT, stop_after_imports)
@@ -38,16 +39,16 @@ def main() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if signal.getsignal(signal.SIGTERM) is stop_after_imports:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    if "pyarrow" in sys.modules:
-        _end_before_teardown(code)
-    return code
+    _end_before_teardown(code)
 
 
 def _end_before_teardown(code: int) -> None:
     """Ends the process once the command has ended, after what Python's teardown runs first (non-daemon
-    threads joined, atexit handlers, the streams flushed) but before the native libraries' static teardown:
-    there pyarrow's thread pools abort the process now and then ("terminate called without an active
-    exception", exit -6; apache/arrow#34314, open), after a command that read a dataset had said all."""
+    threads joined, atexit handlers, the streams flushed) but before the native libraries' teardown, which
+    adds nothing to a command that has said all and has broken its last line: pyarrow's thread pools abort
+    the process now and then ("terminate called without an active exception", exit -6; apache/arrow#34314,
+    open); after a Ctrl-C mid-run, nanobind prints a 30-line report of the ruckig objects the interrupted
+    frames still hold, and the viewer's threads met the freed MuJoCo data (exit 139)."""
     import atexit
     import threading
 

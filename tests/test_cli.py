@@ -97,11 +97,11 @@ def test_python_dash_m_besman(tmp_path):
     assert result.stdout.startswith("aila")
 
 
-def test_a_command_that_used_pyarrow_ends_the_process_before_the_native_teardown(tmp_path):
-    """Where pyarrow is loaded, ``besman.main`` ends the process itself once the command has ended (pyarrow's
-    thread pools abort the native teardown now and then: apache/arrow#34314): first what Python's teardown
-    does first (a running thread joined, the atexit handlers), with the command's exit code; the teardown
-    itself never runs (an object it would finalise says nothing)."""
+def test_a_command_ends_the_process_before_the_native_teardown(tmp_path):
+    """``besman.main`` ends the process itself once the command has ended (pyarrow's thread pools abort the
+    native teardown now and then, apache/arrow#34314; after a Ctrl-C nanobind reports ruckig's objects):
+    first what Python's teardown does first (a running thread joined, the atexit handlers), with the
+    command's exit code; the teardown itself never runs (an object it would finalise says nothing)."""
     code = (
         "import atexit, sys, threading, time, pyarrow, besman\n"
         "class Finalised:\n"
