@@ -1,8 +1,10 @@
 """The `besman` command line."""
 
 import json
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +13,8 @@ from PIL import Image
 
 from besman import __version__
 from besman.cli import main
+
+TREES = Path(__file__).resolve().parents[1] / "examples" / "trees"
 
 
 def test_version_and_help(capsys):
@@ -116,3 +120,35 @@ def test_a_command_ends_the_process_before_the_native_teardown(tmp_path):
     ended = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True)
     assert ended.returncode == 2 and "not a LeRobot dataset" in ended.stderr, ended.stderr
     assert ended.stdout.splitlines() == ["thread joined", "atexit ran"]
+
+
+def test_a_run_in_a_terminal_shows_its_progress_and_wipes_it_and_a_pipe_gets_none(tmp_path):
+    """On a terminal the run redraws one status line (the leaf at work, the tick, the simulated time) and
+    wipes it before the summary; piped, stderr holds nothing of it."""
+    import os
+    import pty
+
+    from besman.commands.progress import CLEAR_LINE
+
+    argv = [sys.executable, "-m", "besman", "run", str(TREES / "grasp_then_place.yaml"), "--seed", "1"]
+    terminal, other_end = pty.openpty()
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=other_end, cwd=tmp_path)
+    os.close(other_end)
+    shown = b""
+    while True:
+        try:
+            chunk = os.read(terminal, 4096)
+        except OSError:  # the run ended: the terminal's other end closed
+            break
+        if not chunk:
+            break
+        shown += chunk
+    out, _ = process.communicate(timeout=120)
+    os.close(terminal)
+    lines = [line for line in shown.decode().split(CLEAR_LINE) if line]
+    assert process.returncode == 0 and out.decode().startswith("SUCCESS")
+    status = re.compile(r"\d+ s: .*tick \d+.* \(?\d+\.\d s simulated\)")
+    assert lines and all(status.fullmatch(line) for line in lines), lines
+    assert shown.endswith(CLEAR_LINE.encode()), shown[-200:]
+    piped = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path)
+    assert piped.returncode == 0 and piped.stderr == "", piped.stderr

@@ -101,6 +101,17 @@ def test_the_wheel_and_sdist_pass_twine_and_the_installed_wheel_runs_from_an_emp
     )
     installed.besman("tree", "check", *trees, cwd=tmp_path)
 
+    # The robots docs/robots.md runs by their folders, brought from a package's files.
+    def files(folder: Path) -> list[str]:
+        found = (p.relative_to(folder) for p in folder.rglob("*") if p.is_file())
+        return sorted(str(p) for p in found if "__pycache__" not in p.parts)
+
+    assert files(tmp_path / "examples" / "robots") == files(REPO / "examples" / "robots")
+    robots = sorted(p.name for p in (tmp_path / "examples" / "robots").iterdir())
+    for robot in robots:
+        shown = installed.besman("robots", "show", f"examples/robots/{robot}", "--json", cwd=tmp_path)
+        assert json.loads(shown)["name"] == robot
+
 
 @pytest.mark.slow
 def test_every_shipped_tree_runs_from_the_installed_wheel_on_every_robot_its_task_fits(installed, tmp_path):
@@ -159,7 +170,8 @@ def test_the_readme_set_up_commands_are_the_main_job_and_what_ci_runs():
     assert run(REPO / ".ci" / "run", "--print").stdout.strip() == test_command
     packages = main_job.removeprefix(APT).split("&&")[0].split()
     assert set(packages) <= set(test_command.removeprefix(APT).split("&&")[0].split())
-    assert test_command.endswith('&& pip install -e ".[dev,distributed,datasets,gym]" && python tests/suite.py')
+    installs = 'pip install -e ".[dev,distributed,datasets,gym]"'
+    assert test_command.endswith(f"&& {installs} && python tests/suite.py")
 
 
 @pytest.mark.slow

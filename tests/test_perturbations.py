@@ -3,6 +3,7 @@ guarded descent, rising clear and opening before it plans again), and the check 
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,6 @@ import pytest
 from helpers import run_cli
 
 from besman.core.errors import InputError
-from besman.core.seeds import child_seed
 from besman.robots.kinematics import Pose
 from besman.sim.block_simulation import step_motion
 from besman.sim.executor import Executor
@@ -19,8 +19,7 @@ from besman.sim.motions import MotionStatus
 from besman.sim.objects import GraspableObject, yaw_of
 from besman.sim.perturbations import Perception, Perturbations, push_free
 from besman.sim.world import tabletop_world
-from besman.tasks import task
-from besman.tasks.running import prepare, run
+from besman.tasks.running import prepare
 
 TREE = Path(__file__).resolve().parents[1] / "examples" / "trees" / "grasp_then_place.yaml"
 UPRIGHT = Pose(np.array([0.5, -0.1, 0.83]), np.array([1.0, 0.0, 0.0, 0.0]))
@@ -105,35 +104,53 @@ def test_a_guarded_descent_stops_where_the_hand_touches_an_object_it_did_not_exp
     assert _box_tilt(world) < 5.0
 
 
-def test_a_retry_after_a_grasp_that_closed_on_nothing_rises_opens_and_grasps_again():
-    """The UR5e, a cylinder perceived off along the fingers: a close squeezes it away (nothing in the hand).
-    The retry rises clear, opens before it plans (the grasp's checks would see the closed fingers where they
-    come down open, and find no grasp), reaches again and succeeds."""
-    tau = [0.35411, -0.09846, 19.2068, 0.35314, -0.32093, -112.0532, 1, 0.053, 0.053, 0.0728]
-    names = []
+@dataclass
+class _OffUntilClosed:
+    """A perception that sees every object ``offset`` (m) off until the test zeroes it."""
+
+    offset: np.ndarray
+    seen: dict = field(default_factory=dict)
+
+    def look(self, pose: Pose, name: str) -> Pose:
+        self.seen[name] = type(pose)(pose.position + self.offset, pose.quaternion)
+        return self.seen[name]
+
+    def last(self, name: str) -> Pose | None:
+        return self.seen.get(name)
+
+
+@pytest.mark.parametrize("robot", ["ur5e", "aila"])
+def test_a_retry_after_a_grasp_that_closed_on_nothing_rises_opens_and_grasps_again(robot):
+    """The box perceived 8 cm beside where it is, until the fingers first close: they close on the air beside
+    it (far enough that nothing touches it, so the same on every processor). The retry rises clear, opens
+    before it plans (the grasp's checks would see the closed fingers where they come down open, and find no
+    grasp), perceives again, reaches and succeeds."""
+    perception = _OffUntilClosed(np.array([0.0, 0.08, 0.0]))
+    motions = []
 
     def watch(runner, _record):
         motion = runner.executor.motion
-        if motion is not None and (not names or names[-1][0] is not motion):
-            names.append((motion, motion.name, motion.status))
+        if motion is not None and (not motions or motions[-1] is not motion):
+            motions.append(motion)
+            if motion.name == "close":
+                perception.offset = np.zeros(3)
 
-    values = task("pick-place").split(np.array(tau))
-    summary = run(
-        "pick-place",
-        robot="ur5e",
-        values=values,
-        seed=child_seed(3037, 2, 3),
-        perturb="perception",
-        observe=watch,
-    )
-    order = [name for _, name, _ in names]
+    prepared = prepare("pick-place", robot=robot, observe=watch)
+    prepared.runner.executor.world.perception = perception
+    summary = prepared.judge(prepared.runner.run())
     assert summary.success, summary.message
-    empty = [
-        index
-        for index, (motion, name, _) in enumerate(names)
-        if name == "close" and motion.message == "the fingers closed on nothing"
+    grasp = ["open", "reach", "descend", "close"]
+    assert [motion.name for motion in motions] == [
+        *grasp,
+        "rise",
+        *grasp,
+        "lift",
+        "carry",
+        "place",
+        "release",
+        "retreat",
     ]
-    assert empty and order[empty[0] + 1 : empty[0] + 4] == ["rise", "open", "reach"]
+    assert motions[3].message == "the fingers closed on nothing"
 
 
 def test_a_fallen_object_at_its_target_is_not_placed():

@@ -76,6 +76,19 @@ def test_one_nodes_parameters_and_roles_come_from_its_code(capsys):
     assert code == 2 and "unknown node type 'Grab'" in err and "Grasp" in err
 
 
+def test_node_descriptions_read_as_text_without_the_docstrings_markup(capsys):
+    """``besman tree nodes`` prints each node type's first docstring sentence as Sphinx would show it."""
+    from besman.trees.reference import node_reference, plain
+
+    descriptions = [entry["description"] for entry in node_reference().values()]
+    assert not [text for text in descriptions if re.search(r"``|:\w+:`", text)]
+    assert plain("``object`` at :data:`~a.b.LIMIT` (:meth:`~a.b.Target.read`, :class:`a.B`)") == (
+        "object at LIMIT (Target.read(), a.B)"
+    )
+    code, out, _ = run_cli(capsys, "tree", "nodes")
+    assert code == 0 and "TILT_LIMIT)" in out and "`" not in out
+
+
 def test_the_guides_node_reference_is_the_generated_one(capsys):
     text = GUIDE.read_text()
     section = text.split("<!-- node-reference -->\n", 1)[1].split("<!-- end node-reference -->", 1)[0]

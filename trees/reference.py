@@ -17,6 +17,7 @@ it, so the reference (``besman tree nodes``, the node section of ``docs/trees.md
 from __future__ import annotations
 
 import inspect
+import re
 from collections.abc import Iterable
 from typing import Any
 
@@ -47,9 +48,29 @@ def _description(spec: NodeType) -> str:
     doc = inspect.getdoc(spec.build) or ""
     if not doc or spec.build.__name__ == "<lambda>":
         return ""
-    paragraph = doc.split("\n\n")[0].replace("\n", " ")
-    sentence = paragraph.split(". ")[0]  # the first sentence
+    paragraph = plain(doc.split("\n\n")[0].replace("\n", " "))
+    sentence = re.split(r"(?<=[.?])\s+(?=[A-Z])", paragraph)[0]  # the first sentence
     return sentence if sentence.endswith((".", "?")) else sentence + "."
+
+
+_ROLE = re.compile(r":(?:py:)?(\w+):`(~?)([^`<]*?)(?:\s*<([^`>]+)>)?`")
+
+
+def plain(text: str) -> str:
+    """A docstring's reStructuredText as people read it in a terminal or an editor's tooltip, as Sphinx shows
+    it: ``name`` -> name, :data:`~a.b.LIMIT` -> LIMIT, :meth:`~a.B.read` -> B.read(), :class:`a.B` -> a.B,
+    :func:`title <a.f>` -> title."""
+
+    def shown(match: re.Match) -> str:
+        role, short, target, title_target = match.groups()
+        if title_target is not None:  # :role:`title <target>`
+            return target.strip()
+        parts = target.split(".")
+        if short:  # ~: the last name, a method's with its class
+            parts = parts[-2:] if role == "meth" else parts[-1:]
+        return ".".join(parts) + ("()" if role in ("func", "meth") else "")
+
+    return _ROLE.sub(shown, text).replace("``", "")
 
 
 def _range(param: Param) -> str:

@@ -80,9 +80,11 @@ def run_task(args: argparse.Namespace, *, task=None, tree=None, values: dict, lo
         print(f"{args.dataset}: the run is episode {index}", file=sys.stderr)
         return summary, []
     if not args.view:
+        from besman.commands.progress import RunProgress
         from besman.tasks.running import run
 
-        return run(task, tree, values=values, log=log, **options), []
+        with RunProgress() as progress:
+            return run(task, tree, values=values, log=log, observe=progress.observe, **options), []
     from besman.tasks.session import Session
 
     session = Session(
