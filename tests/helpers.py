@@ -379,19 +379,20 @@ def follow_page(page: Path, package: Path) -> list[str]:
     """A documentation page that builds a plugin, followed literally: its files (each block marked
     ``<!-- file: PATH -->``) written into the folder ``package``, the package installed as its last bash
     block's first command says (``pip install ./NAME``; here into a folder of its own, beside ``package``),
-    then that block's other commands run in ``package`` with it installed; their outputs, in order."""
+    then, as its ``cd NAME`` says, that block's other commands run in ``package`` with it installed; their
+    outputs, in order."""
     text = page.read_text()
     for path, content in re.findall(r"<!-- file: (\S+) -->\n```\w*\n(.*?)```", text, flags=re.DOTALL):
         (package / path).parent.mkdir(parents=True, exist_ok=True)
         (package / path).write_text(content)
     block = re.findall(r"```bash\n(.*?)```", text, flags=re.DOTALL)[-1]
     commands = [shlex.split(line) for line in block.splitlines() if line.strip()]
-    assert commands[0] == ["pip", "install", f"./{package.name}"], commands[0]
+    assert commands[:2] == [["pip", "install", f"./{package.name}"], ["cd", package.name]], commands[:2]
     site = package.parent / "site"
     _succeed(sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", site, package)
     environment = {**os.environ, "PYTHONPATH": str(site)}
     outputs = []
-    for command in commands[1:]:
+    for command in commands[2:]:
         if command[0] == "besman":
             command = [Path(sys.executable).parent / "besman", *command[1:]]
         elif command[:3] == ["python", "-m", "pytest"]:

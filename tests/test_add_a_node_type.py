@@ -21,7 +21,8 @@ PAGE = ROOT / "docs" / "node-types.md"
 @pytest.mark.slow
 def test_the_add_a_node_type_page_works_as_written(tmp_path):
     described, checked, ran, tested = follow_page(PAGE, tmp_path / "besman-hand-checks")
-    assert described.startswith("HandAbove: Succeeds while the hand's tool frame is higher than ``z``")
+    said = "HandAbove: Succeeds while the hand's tool frame is higher than z (m, in the world)"
+    assert described.startswith(said)
     assert "  z: float, required\n" in described
     assert checked.strip().endswith("lifted.yaml: ok")
     assert ran.startswith("SUCCESS: placement error")

@@ -13,9 +13,9 @@ import pytest
 from helpers import sigint_by_default
 
 # Seconds after the start: from the handlers' first moment (Python's own start-up, before any of besman runs,
-# is not ours) through the imports, the viewer's start (about 0.9 s), the run (about 3 s at --speed 4) and the
-# serving after it; on a loaded machine the same moments land earlier in the command's life.
-MOMENTS = [0.1 + 0.23 * i for i in range(20)]
+# is not ours) through the imports, the viewer's start (about 0.9 s), the run (about 1.5 s at --speed 8) and
+# the serving after it; on a loaded machine the same moments land earlier in the command's life.
+MOMENTS = [0.1 + 0.14 * i for i in range(20)]
 
 
 @pytest.mark.slow
@@ -24,7 +24,7 @@ def test_ctrl_c_at_any_moment_of_a_view_run_ends_in_one_line_with_exit_130():
     ended = []
     for moment in MOMENTS:
         process = subprocess.Popen(
-            [str(script), "demo", "--view", "--speed", "4"],
+            [str(script), "demo", "--view", "--speed", "8"],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
             text=True,

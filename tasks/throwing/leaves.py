@@ -36,7 +36,7 @@ from besman.trees.manipulation import TEMPLATE_PARAMETERS
 
 def _throwing(name: str, executor) -> ThrowingExecutor:
     if not isinstance(executor, ThrowingExecutor):
-        raise InputError(f"{name}: throwing needs the PA-10's throwing executor (besman demo throw)")
+        raise InputError(f"{name}: throwing needs the PA-10's throwing executor (besman demo throwing)")
     return executor
 
 
