@@ -18,6 +18,9 @@ def stopped(kept: str = "") -> int:
     shell reports for a process the signal ended, so a supervisor that sent SIGTERM sees the stop it asked
     for, and not a user's Ctrl-C."""
     terminated = _received[-1:] == [signal.SIGTERM]
+    bars = sys.modules.get("tqdm")
+    for bar in list(getattr(getattr(bars, "tqdm", None), "_instances", ())):
+        bar.close()  # a progress bar the stop left drawn ends its line first: ours is the last line
     print(f"besman: {'terminated' if terminated else 'interrupted'}{kept}", file=sys.stderr)
     return 143 if terminated else 130
 
