@@ -1,13 +1,11 @@
 """The whole suite as CI runs it (the README's test command ends with ``python tests/suite.py``): every test,
-slow ones included, in two pytest runs at once. The browser viewer's tests run in one of their own beside the
-rest: they mostly wait on real time and on the headless browser (about 40 s of processor time in 90 s), but
-software WebGL next to a busy worker is too slow for their real-time checks, so the rest run at a lower
-priority (nice 10) and leave them the processor whenever they want it. Each run goes on whatever the other
-gives; the exit code is non-zero where either failed. It measures what the README states of the suite: the
-wall time and the peak memory of the whole process tree (pytest, its workers and every command, Ray worker
-and browser they start: the sum of their proportional set sizes, /proc's PSS, sampled every half second),
-printed at the end and kept in ``tests/suite.json`` beside the test files' own times
-(``tests/durations.json``). The rest's output comes as it runs, the viewer's after it."""
+slow ones included, in two phases, the browser viewer's tests alone after the rest (software WebGL beside a
+busy worker is too slow for their real-time checks; run beside the rest at a lower priority, the suite took
+longer, not less), and the second whatever the first gave; the exit code is
+non-zero where either phase failed. It measures what the README states of the suite: the wall time and the
+peak memory of the whole process tree (pytest, its workers and every command, Ray worker and browser they
+start: the sum of their proportional set sizes, /proc's PSS, sampled every half second), printed at the end
+and kept in ``tests/suite.json`` beside the test files' own times (``tests/durations.json``)."""
 
 import json
 import os
@@ -15,7 +13,6 @@ import re
 import shlex
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -57,79 +54,50 @@ def tree_memory(root: int) -> int:
     return total
 
 
-def start(name: str, arguments: list[str], output, nice: int) -> subprocess.Popen:
-    """One pytest run, started with its output to ``output``, at the priority ``nice``."""
+def run_phase(name: str, arguments: list[str]) -> dict:
+    """One pytest run, its output passed on as it comes; its exit code, counts, minutes and peak memory."""
     argv = [sys.executable, "-m", "pytest", "-m", "", "--record-durations", *arguments]
-    print(f"+ python {shlex.join(argv[1:])}  ({name}, nice {nice})", flush=True)
-    return subprocess.Popen(
-        argv,
-        stdout=output,
-        stderr=subprocess.STDOUT,
-        text=True,
-        cwd=TESTS.parent,
-        preexec_fn=(lambda: os.nice(nice)) if nice else None,
+    print(f"+ python {shlex.join(argv[1:])}  ({name})", flush=True)
+    started = time.monotonic()
+    process = subprocess.Popen(
+        argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=TESTS.parent
     )
+    peak = [0]
 
+    def sample() -> None:
+        while process.poll() is None:
+            peak[0] = max(peak[0], tree_memory(process.pid))
+            time.sleep(SAMPLE_SECONDS)
 
-def outcome(name: str, code: int, last_line: str, seconds: float, peak: int) -> dict:
-    counted = re.findall(r"(\d+) (passed|failed|errors?|skipped)", last_line)  # pytest's last line
+    sampler = threading.Thread(target=sample, daemon=True)
+    sampler.start()
+    last = ""
+    for line in process.stdout:
+        sys.stdout.write(line)
+        sys.stdout.flush()
+        if line.strip():
+            last = line
+    code = process.wait()
+    sampler.join()
+    counted = re.findall(r"(\d+) (passed|failed|errors?|skipped)", last)  # pytest's last line
+    counts = {word: int(number) for number, word in counted}
     return {
         "name": name,
         "exit_code": code,
-        "counts": {word: int(number) for number, word in counted},
-        "minutes": round(seconds / 60, 2),
-        "peak_memory_gb": round(peak / 1e9, 2),
+        "counts": counts,
+        "minutes": round((time.monotonic() - started) / 60, 2),
+        "peak_memory_gb": round(peak[0] / 1e9, 2),
     }
 
 
 def main() -> int:
     started = time.monotonic()
-    (rest_name, rest), (viewer_name, viewer) = PHASES.items()
-    with tempfile.TemporaryFile("w+") as viewer_output:
-        processes = {
-            viewer_name: start(viewer_name, viewer, viewer_output, nice=0),
-            rest_name: start(rest_name, rest, subprocess.PIPE, nice=10),
-        }
-        ended: dict[str, float] = {}
-        peaks = dict.fromkeys(processes, 0)
-        peak = [0]  # of both at once
-
-        def sample() -> None:
-            while len(ended) < len(processes):
-                both = 0
-                for name, process in processes.items():
-                    if name in ended:
-                        continue
-                    if process.poll() is not None:
-                        ended[name] = time.monotonic() - started
-                        continue
-                    used = tree_memory(process.pid)
-                    peaks[name], both = max(peaks[name], used), both + used
-                peak[0] = max(peak[0], both)
-                time.sleep(SAMPLE_SECONDS)
-
-        sampler = threading.Thread(target=sample, daemon=True)
-        sampler.start()
-        last = ""
-        for line in processes[rest_name].stdout:
-            sys.stdout.write(line)
-            sys.stdout.flush()
-            last = line if line.strip() else last
-        codes = {name: process.wait() for name, process in processes.items()}
-        sampler.join()  # it notes when each ended
-        viewer_output.seek(0)
-        viewer_lines = viewer_output.read()
-    sys.stdout.write(viewer_lines)
-    viewer_last = next((line for line in reversed(viewer_lines.splitlines()) if line.strip()), "")
-    phases = [
-        outcome(rest_name, codes[rest_name], last, ended[rest_name], peaks[rest_name]),
-        outcome(viewer_name, codes[viewer_name], viewer_last, ended[viewer_name], peaks[viewer_name]),
-    ]
+    phases = [run_phase(name, arguments) for name, arguments in PHASES.items()]
     record = {
         "schema_version": 1,
         "cores": os.cpu_count(),
         "minutes": round((time.monotonic() - started) / 60, 2),
-        "peak_memory_gb": round(peak[0] / 1e9, 2),
+        "peak_memory_gb": max(phase["peak_memory_gb"] for phase in phases),
         "phases": phases,
     }
     RECORD.write_text(json.dumps(record, indent=1) + "\n")
