@@ -1,8 +1,9 @@
 """The examples that ship with besman (``besman.examples``): tree files, skill template pools, two human
-recordings and robots brought from a package's files, installed with the package and found through :mod:`importlib.resources`.
+recordings and robots brought from a package's files, installed with the package and found through
+:mod:`importlib.resources`.
 
-``besman examples --copy DIR`` puts a copy in ``DIR/examples`` (trees, pools, data, robots), where the README's
-commands find them; the scripts beside them (``robot_tour.py``...) run from a checkout.
+``besman examples --copy DIR`` puts a copy in ``DIR/examples`` (trees, pools, data, robots), where the
+README's commands find them; the scripts beside them (``robot_tour.py``...) run from a checkout.
 """
 
 from __future__ import annotations
