@@ -35,22 +35,10 @@ import numpy as np
 from besman.core.errors import InputError
 from besman.sim.arm import Arm
 from besman.sim.executor import Executor
-from besman.sim.manipulation import (
-    DEFAULT_PLAN,
-    PICK_STEPS,
-    PLACE_STEPS,
-    PickMotions,
-    PickPlacePlan,
-    PlaceMotions,
-    PlanningError,
-    Step,
-    Target,
-    hand_yaw,
-    plan_pick,
-    plan_place,
-)
+from besman.sim.manipulation import PickMotions, PlaceMotions, PlanningError, hand_yaw, plan_pick, plan_place
 from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
 from besman.sim.outcomes import lifted, placement
+from besman.sim.plans import DEFAULT_PLAN, PICK_STEPS, PLACE_STEPS, PickPlacePlan, Step, Target
 from besman.sim.primitives import shaped
 from besman.sim.world import World
 from besman.skills import MovementPrimitive
@@ -123,7 +111,7 @@ class BlockStart:
     start: np.ndarray
     goal: np.ndarray
     after: tuple[tuple[Step, PickMotions | PlaceMotions], ...]
-    place: np.ndarray  # the target (:meth:`~besman.sim.manipulation.Target.read`)
+    place: np.ndarray  # the target (:meth:`~besman.sim.plans.Target.read`)
 
 
 def snapshot(world: World) -> np.ndarray:

@@ -24,7 +24,6 @@ cannot keep up with a reference (too fast for the limits), or when the robot doe
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum
 from typing import ClassVar, Protocol
 
 import numpy as np
@@ -34,6 +33,7 @@ from besman.core.errors import InputError
 from besman.sim.arm import Arm
 from besman.sim.executor_config import ExecutorConfig
 from besman.sim.hand import Hand
+from besman.sim.motion_status import MotionStatus
 from besman.sim.references import ReferenceSettings, joint_reference
 from besman.sim.streaming import JerkLimitedStream
 from besman.skills import MovementPrimitive, Trajectory
@@ -52,12 +52,6 @@ class Driver(Protocol):
     stream: JerkLimitedStream
     gripper_stream: JerkLimitedStream | None
     reference_settings: ReferenceSettings
-
-
-class MotionStatus(Enum):
-    RUNNING = "running"
-    SUCCEEDED = "succeeded"
-    FAILED = "failed"
 
 
 class Chunk:

@@ -10,12 +10,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import mujoco
 import numpy as np
 
 from besman.sim.objects import yaw_error, yaw_of
-from besman.sim.world import World
+
+if TYPE_CHECKING:
+    from besman.sim.world import World
 
 SETTLE_TIME = 0.3  # s a released box is left to settle before it is judged
 PLACE_TOLERANCE = 0.02  # m from the target, in the plane
@@ -40,6 +42,8 @@ class Placement:
 
 def settle(world: World, observe: Callable[[], None] | None = None) -> None:
     """Lets the world run :data:`SETTLE_TIME` (``observe`` after each step)."""
+    import mujoco  # here: tree nodes import the tolerances above, and listing nodes needs no MuJoCo
+
     for _ in range(round(SETTLE_TIME / world.model.opt.timestep)):
         mujoco.mj_step(world.model, world.data)
         if observe is not None:

@@ -38,9 +38,10 @@ from besman.robots.servos import force_limit, growth_per_step, joint_inertia, se
 from besman.sim.arm import Arm
 from besman.sim.executor import Executor, ExecutorConfig
 from besman.sim.hand import Hand
-from besman.sim.manipulation import DEFAULT_PLAN, FINGER_DEPTH
+from besman.sim.manipulation import FINGER_DEPTH
 from besman.sim.motions import MoveTo
 from besman.sim.objects import GraspableObject
+from besman.sim.plans import DEFAULT_PLAN
 from besman.sim.world import World, tabletop_world
 from besman.tasks.base import Finding
 

@@ -14,10 +14,11 @@ from besman.core.errors import InputError
 from besman.robots.kinematics import Pose
 from besman.sim.block_simulation import step_motion
 from besman.sim.executor import Executor
-from besman.sim.manipulation import DEFAULT_PLAN, PICK_STEPS, hand_yaw, plan_pick
+from besman.sim.manipulation import hand_yaw, plan_pick
 from besman.sim.motions import MotionStatus
 from besman.sim.objects import GraspableObject, yaw_of
 from besman.sim.perturbations import Perception, Perturbations, push_free
+from besman.sim.plans import DEFAULT_PLAN, PICK_STEPS
 from besman.sim.world import tabletop_world
 from besman.tasks.running import prepare
 

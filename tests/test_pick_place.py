@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from besman.sim.arm import Arm
-from besman.sim.manipulation import PickPlacePlan, grasp_yaws
+from besman.sim.manipulation import grasp_yaws
 from besman.sim.objects import GraspableObject, yaw_error, yaw_of
+from besman.sim.plans import PickPlacePlan
 from besman.sim.world import tabletop_world
 from besman.tasks import task as find_task
 from besman.tasks.pick_place.episode import PickPlaceRollouts

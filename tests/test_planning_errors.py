@@ -10,9 +10,10 @@ import pytest
 
 from besman.robots.catalogue import ROBOTS_DIR
 from besman.sim.arm import Arm
-from besman.sim.manipulation import PickPlacePlan, plan_pick
+from besman.sim.manipulation import plan_pick
 from besman.sim.misses import PlanningError
 from besman.sim.objects import GraspableObject
+from besman.sim.plans import PickPlacePlan
 from besman.sim.world import tabletop_world
 
 CUBE = GraspableObject("box", size=(0.03, 0.03, 0.03))

@@ -478,7 +478,8 @@ def test_overlays_and_the_tree_panel_follow_a_template_run():
     import py_trees
 
     from besman.sim.executor import Executor
-    from besman.sim.manipulation import PickPlacePlan, plan_pick
+    from besman.sim.manipulation import plan_pick
+    from besman.sim.plans import PickPlacePlan
     from besman.sim.world import tabletop_world
     from besman.skills.task_bounds import TaskBounds
     from besman.skills.template import SkillTemplate

@@ -12,55 +12,23 @@ run in the browser viewer. A file names Python templates and pools only as regis
 (:mod:`besman.trees.registry`).
 """
 
-from besman.core.moved import old_names
-from besman.trees.conditions import ArmsApart, AtPose, ObjectAt, ObjectGrasped
-from besman.trees.files import TreeFileError, check_tree, describe, dump_tree, load_tree, loads_tree
-from besman.trees.guards import KeepApart
-from besman.trees.idioms import grasp, grasp_then_place, place, return_home
-from besman.trees.leaves import ExecutePrimitive, Gripper, InstantiateSkillTemplate
-from besman.trees.loops import ForEach
-from besman.trees.manipulation import PerceiveObject, PlanGrasp, PlanMove, PlanPlace, PlanReturn
-from besman.trees.nodes import register_node_type
-from besman.trees.registry import register_pool, register_template
-from besman.trees.runner import Runner, RunResult, read_log
-from besman.trees.summary import RunSummary
-from besman.trees.timing import Deadline, SimTimeout, Wait
+from besman.core.lazy import lazy_names
 
-__all__ = [
-    "ArmsApart",
-    "AtPose",
-    "Deadline",
-    "ExecutePrimitive",
-    "ForEach",
-    "Gripper",
-    "InstantiateSkillTemplate",
-    "KeepApart",
-    "ObjectAt",
-    "ObjectGrasped",
-    "PerceiveObject",
-    "PlanGrasp",
-    "PlanMove",
-    "PlanPlace",
-    "PlanReturn",
-    "RunResult",
-    "RunSummary",
-    "Runner",
-    "SimTimeout",
-    "TreeFileError",
-    "Wait",
-    "check_tree",
-    "describe",
-    "dump_tree",
-    "grasp",
-    "grasp_then_place",
-    "load_tree",
-    "loads_tree",
-    "place",
-    "read_log",
-    "register_node_type",
-    "register_pool",
-    "register_template",
-    "return_home",
-]
+# Where each name lives; imported on first use, so that loading, showing or checking a tree file does not
+# bring the runner (MuJoCo) with it.
+_HOMES = {
+    "conditions": ("ArmsApart", "AtPose", "ObjectAt", "ObjectGrasped"),
+    "files": ("TreeFileError", "check_tree", "describe", "dump_tree", "load_tree", "loads_tree"),
+    "guards": ("KeepApart",),
+    "idioms": ("grasp", "grasp_then_place", "place", "return_home"),
+    "leaves": ("ExecutePrimitive", "Gripper", "InstantiateSkillTemplate"),
+    "loops": ("ForEach",),
+    "manipulation": ("PerceiveObject", "PlanGrasp", "PlanMove", "PlanPlace", "PlanReturn"),
+    "nodes": ("register_node_type",),
+    "registry": ("register_pool", "register_template"),
+    "runner": ("Runner", "RunResult", "read_log"),
+    "summary": ("RunSummary",),
+    "timing": ("Deadline", "SimTimeout", "Wait"),
+}
 
-__getattr__ = old_names(__name__)  # the old names, for one release (besman.core.moved)
+__getattr__, __dir__, __all__ = lazy_names(__name__, _HOMES)

@@ -15,15 +15,16 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from besman.core.validation import SEED
-from besman.learning.search.acceptance import Acceptance
-from besman.learning.search.online import search_instance
 from besman.trees.base import SimulationBehaviour
 from besman.trees.templates import check_template
+
+if TYPE_CHECKING:
+    from besman.learning.search.acceptance import Acceptance
 
 
 @dataclass(frozen=True)
@@ -79,6 +80,8 @@ class TemplateAim(SimulationBehaviour):
         (instance_reward,) = simulated(mean[None])
         theta, reward, self.rollouts, self.acceptance = mean, float(instance_reward), 1, None
         if reward < target_reward and self.budget > 0:
+            from besman.learning.search.online import search_instance  # MuJoCo: only where it refines
+
             found = search_instance(
                 simulated,
                 mean,

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import py_trees
 from py_trees.blackboard import Blackboard
@@ -30,8 +30,10 @@ from py_trees.common import Access
 
 from besman.core.errors import InputError, UnknownNameError
 from besman.core.validation import as_given, checked, instance, integer, number, optional, shaped, text
-from besman.sim.executor import Executor
 from besman.skills import MovementPrimitive
+
+if TYPE_CHECKING:
+    from besman.sim.executor import Executor
 
 BEHAVIOUR = instance(py_trees.behaviour.Behaviour, "a py_trees behaviour")
 NAMES = instance(Mapping, "a mapping of names")
@@ -155,6 +157,8 @@ class SimulationBehaviour(RoleBehaviour):
 
 def executor_of(name: str, setup_arguments: Mapping[str, Any]) -> Executor:
     """The executor given to ``setup``; a clear error names the behaviour if there is none."""
+    from besman.sim.executor import Executor  # when a tree is set up to run: building one needs no MuJoCo
+
     executor = setup_arguments.get("executor")
     if not isinstance(executor, Executor):
         raise InputError(

@@ -11,17 +11,19 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
-from besman.sim.manipulation import Target
 from besman.sim.objects import yaw_error, yaw_of
 from besman.sim.outcomes import PLACE_TOLERANCE, TILT_LIMIT, YAW_TOLERANCE
-from besman.sim.proximity import ArmProximity
+from besman.sim.plans import Target
 from besman.trees.base import SimulationBehaviour
+
+if TYPE_CHECKING:
+    from besman.sim.proximity import ArmProximity
 
 
 class ObjectGrasped(SimulationBehaviour):
@@ -46,7 +48,7 @@ class ObjectAt(SimulationBehaviour):
     """Is ``object`` within ``tolerance`` (m) of ``position`` or of the blackboard's ``target``, standing
     (tilted less than :data:`~besman.sim.outcomes.TILT_LIMIT`), and turned to its yaw within
     :data:`~besman.sim.outcomes.YAW_TOLERANCE` if it has one? Either is a target as
-    :meth:`~besman.sim.manipulation.Target.read` takes it: x, y, the yaw (deg), the height z of the top the
+    :meth:`~besman.sim.plans.Target.read` takes it: x, y, the yaw (deg), the height z of the top the
     object is set down on (its bottom is judged there)."""
 
     roles: ClassVar = {"target": Access.READ}
@@ -159,6 +161,8 @@ class ArmsApart(SimulationBehaviour):
 
 def proximity_of(name: str, executor, other: str) -> ArmProximity:
     """The proximity of ``executor``'s arm to the ``other`` arm; an error names a missing or same arm."""
+    from besman.sim.proximity import ArmProximity  # with the executor: MuJoCo is loaded by then
+
     if other == executor.name:
         raise InputError(f"{name}: other must name another arm than {executor.name!r}")
     try:

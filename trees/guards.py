@@ -10,15 +10,17 @@ do the same in code, but needs a parallel policy that tree files do not have.)
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import py_trees
 from py_trees.common import Status
 
 from besman.core.validation import checked, optional, positive, text
-from besman.sim.proximity import ArmProximity
 from besman.trees.base import BEHAVIOUR, executor_of
 from besman.trees.conditions import apart, proximity_of
+
+if TYPE_CHECKING:
+    from besman.sim.proximity import ArmProximity
 
 
 class KeepApart(py_trees.decorators.Decorator):

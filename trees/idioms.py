@@ -4,7 +4,7 @@ Each subtree keeps its blackboard in one skill namespace; its planning leaf writ
 :class:`~besman.trees.leaves.ExecutePrimitive` leaves read, wired by the planning leaf's own role keys.
 
 - :func:`grasp` - rise clear of the table if the hand is down by it (after a failed try), open, perceive,
-  plan, then the rest of pick and place's grasp steps (``PICK_STEPS`` of :mod:`besman.sim.manipulation`:
+  plan, then the rest of pick and place's grasp steps (``PICK_STEPS`` of :mod:`besman.sim.plans`:
   reach, descend - guarded: touching the object on the way fails it - close on the object - a grasp is
   required - and lift), check the grasp; retried from fresh perception when it fails.
 - :func:`place` - plan, then the place steps (``PLACE_STEPS``: carry and set down while a guard checks
@@ -40,7 +40,7 @@ from besman.core.validation import (
     shaped,
     text,
 )
-from besman.sim.manipulation import GRASP_SUBGOALS, PICK_STEPS, PLACE_STEPS, PLACE_SUBGOALS, PickPlacePlan
+from besman.sim.plans import GRASP_SUBGOALS, PICK_STEPS, PLACE_STEPS, PLACE_SUBGOALS, PickPlacePlan
 from besman.trees.base import NAMES, RoleBehaviour, SimulationBehaviour
 from besman.trees.conditions import ObjectAt, ObjectGrasped
 from besman.trees.leaves import ExecutePrimitive, Gripper
@@ -168,7 +168,7 @@ def grasp(
 ) -> py_trees.behaviour.Behaviour:
     """A subtree that grasps ``object`` (a name, or a key holding one) with ``arm`` (default: the executor's
     own), ``offset`` from its centre, and lifts it; up to ``attempts`` tries from fresh perception. Its
-    subgoals (:class:`~besman.sim.manipulation.PickPlacePlan`'s numbers) set how high above the grasp it
+    subgoals (:class:`~besman.sim.plans.PickPlacePlan`'s numbers) set how high above the grasp it
     comes down from, where the fingers close and how long descending and lifting take. With
     ``target`` (the key of the placement the grasp is for), it grasps so that the object can be set down
     there at the target's yaw. With a ``pool`` and a ``template``, the reach is the template's (see
@@ -338,7 +338,7 @@ def _wiring(leaf: type[RoleBehaviour], namespace: str, remap: Mapping[str, str])
 
 
 def _step_leaves(steps, planning: SimulationBehaviour, object: str) -> list:
-    """The leaves that run pick-and-place ``steps`` (:data:`~besman.sim.manipulation.PICK_STEPS`, ...) with
+    """The leaves that run pick-and-place ``steps`` (:data:`~besman.sim.plans.PICK_STEPS`, ...) with
     the arm of the ``planning`` leaf: a gripper action, or a primitive that leaf writes, guarded while the
     object must stay in the hand."""
     arm = planning.arm

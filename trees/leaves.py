@@ -14,17 +14,20 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
-from besman.sim.motions import FollowPrimitive, GripperMotion, Motion, MotionStatus
+from besman.sim.motion_status import MotionStatus
 from besman.skills import MovementPrimitive
 from besman.trees.base import RoleBehaviour, SimulationBehaviour
 from besman.trees.templates import check_template
 from besman.trees.timing import Deadline
+
+if TYPE_CHECKING:
+    from besman.sim.motions import Motion
 
 _STATUS = {
     MotionStatus.RUNNING: Status.RUNNING,
@@ -114,6 +117,8 @@ class ExecutePrimitive(MotionLeaf):
             raise InputError(
                 f"{self.key('primitive')} holds {type(primitive).__name__}, not a MovementPrimitive"
             )
+        from besman.sim.motions import FollowPrimitive  # as a motion starts: building a tree needs no MuJoCo
+
         return FollowPrimitive(primitive, untouched=self.object)
 
 
@@ -155,6 +160,8 @@ class Gripper(MotionLeaf):
         self.opening = (None if action == "open" else 0.0) if opening is None else float(opening)
 
     def make_motion(self) -> Motion:
+        from besman.sim.motions import GripperMotion  # as the motion starts (see ExecutePrimitive)
+
         return GripperMotion(
             self.name, opening=self.opening, expect_grasp=self.expect_grasp, grasp_object=self.object
         )

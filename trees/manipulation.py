@@ -4,7 +4,7 @@
 - :class:`PerceiveObject` writes an object's current position (simulated perception) to ``object_position``.
 - :class:`PlanGrasp` reads ``object_position`` and writes the ``reach``, ``descend`` and ``lift``
   primitives planned from the robot's current commanded state (:func:`besman.sim.manipulation.plan_pick`).
-- :class:`PlanPlace` reads the ``target`` (:meth:`~besman.sim.manipulation.Target.read`: x, y, and the yaw
+- :class:`PlanPlace` reads the ``target`` (:meth:`~besman.sim.plans.Target.read`: x, y, and the yaw
   and the top it is set on if any) and writes ``carry``, ``place`` and ``retreat``.
 - :class:`PlanReturn` writes ``return``: a learned return home from where the arm is.
 - :class:`PlanMove` writes ``motion``: the hand to a position, straight up, or the arm home (presenting an
@@ -21,28 +21,25 @@ The subtrees that use them are in :mod:`besman.trees.idioms`.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
-from besman.learning.search.online import Refinement, refine_online, uncertainty
-from besman.sim.block_simulation import INPUT_NAMES, BlockStart, block_input, snapshot, steps_after
-from besman.sim.manipulation import (
-    DEFAULT_PLAN,
-    PickPlacePlan,
-    PlanningError,
-    plan_move,
-    plan_pick,
-    plan_place,
-)
-from besman.sim.motions import FollowPrimitive, Motion
+from besman.sim.misses import PlanningError
 from besman.sim.objects import yaw_of
-from besman.sim.primitives import shaped
+from besman.sim.plans import DEFAULT_PLAN, PickPlacePlan
 from besman.trees.base import SimulationBehaviour
 from besman.trees.leaves import MotionLeaf
 from besman.trees.templates import check_template, check_template_fits
+
+if TYPE_CHECKING:
+    from besman.learning.search.online import Refinement
+    from besman.sim.motions import Motion
+
+# The planners, the simulation and online refinement (MuJoCo, Ruckig) are imported in the methods that run
+# them: building a tree, showing it or listing its node types needs none of them, and answers at once.
 
 # The parameters (kinds: see besman.trees.nodes) of a leaf or subtree whose motion is a skill template's
 # instance; LEARNED: of a planning leaf or subtree whose big move may be one, refined online where the
@@ -63,6 +60,8 @@ class TemplateInstance:
         self.tau: np.ndarray | None = None
 
     def __call__(self, start: np.ndarray, end: np.ndarray):
+        from besman.sim.block_simulation import block_input
+
         self.tau = block_input(self.arm, start, end)
         if hasattr(self.template, "primitive_for_move"):
             return self.template.primitive_for_move(start, end)
@@ -103,6 +102,9 @@ class RiseClear(MotionLeaf):
         return super().update()
 
     def make_motion(self) -> Motion:
+        from besman.sim.manipulation import plan_move
+        from besman.sim.motions import FollowPrimitive
+
         executor = self.executor
         allowed = () if self.object is None else (self.object,)
         return FollowPrimitive(plan_move(executor.arm, executor.position, rise=self.rise(), allowed=allowed))
@@ -165,7 +167,6 @@ class _Plan(SimulationBehaviour):
 
     source = ""
     block = ""
-    planner: ClassVar = None
     parameters: ClassVar = {"object": "str", **LEARNED, "arm": "str"}
 
     def __init__(
@@ -194,6 +195,8 @@ class _Plan(SimulationBehaviour):
                 self.use(role)
 
     def setup(self, **kwargs: Any) -> None:
+        from besman.sim.block_simulation import INPUT_NAMES
+
         super().setup(**kwargs)
         if self.pool is not None:
             robot = self.executor.world.robot.name
@@ -237,6 +240,9 @@ class _Plan(SimulationBehaviour):
     ) -> tuple[Any, str]:
         """The motions planned again with the template's instance refined online, if the template's spread
         at tau is above ``refine_above``; and a note for the feedback."""
+        from besman.learning.search.online import refine_online, uncertainty
+        from besman.sim.block_simulation import BlockStart, snapshot, steps_after
+
         spread = uncertainty(template, tau)
         if spread <= self.refine_above:
             return motions, ""
@@ -258,10 +264,8 @@ class _Plan(SimulationBehaviour):
         return self._planned(goal, item, self.refinement.primitive), note
 
     def _planned(self, goal: np.ndarray, item, shape):
-        executor = self.executor
-        return type(self).planner(
-            executor.arm, executor.position, item, goal, self.plan, executor.reference_settings, shape
-        )
+        """The leaf's motions to ``goal`` for ``item``, the big move shaped by ``shape`` if given."""
+        raise NotImplementedError
 
 
 def _planning_roles(source: str, *outputs: str) -> dict[str, Access]:
@@ -285,7 +289,6 @@ class PlanGrasp(_Plan):
         "offset": Access.READ,
     }
     block = "reach"
-    planner = plan_pick
 
     def __init__(
         self,
@@ -333,6 +336,8 @@ class PlanGrasp(_Plan):
         return offset
 
     def _planned(self, goal: np.ndarray, item, shape):
+        from besman.sim.manipulation import plan_pick
+
         executor = self.executor
         yaw = yaw_of(executor.world.perceived(item.name).rotation)  # as the latest look saw it
         then = self.blackboard.get("target") if "target" in self.remap else None
@@ -343,17 +348,18 @@ class PlanGrasp(_Plan):
 class PlanPlace(_Plan):
     """Plans carry, place and retreat to the ``target`` from the current configuration: x, y on the shelf,
     turned to a yaw (deg) if it has one, onto a top at a height if it has one (another object's: a stack;
-    :meth:`~besman.sim.manipulation.Target.read`)."""
+    :meth:`~besman.sim.plans.Target.read`)."""
 
     source = "target"
     roles: ClassVar = _planning_roles(source, "carry", "place", "retreat")
     block = "carry"
-    planner = plan_place
 
     def goal(self, source: np.ndarray, item: str) -> np.ndarray:
         return source
 
     def _planned(self, goal: np.ndarray, item, shape):
+        from besman.sim.manipulation import plan_place
+
         # The object, not the hand, goes to the target: where it is held off its centre (a bar taken over at
         # one end), the planner moves the hand by as much (turned with the hand).
         executor = self.executor
@@ -388,10 +394,14 @@ class PlanReturn(SimulationBehaviour):
         self.use("return")
 
     def setup(self, **kwargs: Any) -> None:
+        from besman.sim.block_simulation import INPUT_NAMES
+
         super().setup(**kwargs)
         check_template_fits(self.name, self.pool[self.template], self.executor.world.robot.name, INPUT_NAMES)
 
     def update(self) -> Status:
+        from besman.sim.primitives import shaped
+
         executor = self.executor
         arm = executor.arm
         try:
@@ -471,6 +481,8 @@ class PlanMove(SimulationBehaviour):
         return position, yaw
 
     def update(self) -> Status:
+        from besman.sim.manipulation import plan_move
+
         executor = self.executor
         held = self.object
         try:

@@ -21,18 +21,22 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
-from besman.sim.motions import MotionStatus
-from besman.sim.open_loop import SUCCESS
-from besman.sim.open_loop_executor import OpenLoopExecutor, OpenLoopMotion
+from besman.sim.motion_status import MotionStatus
 from besman.trees.aim import TemplateAim
 from besman.trees.base import SimulationBehaviour
 from besman.trees.manipulation import TEMPLATE_PARAMETERS
+
+if TYPE_CHECKING:
+    from besman.sim.open_loop_executor import OpenLoopMotion
+
+# The open-loop executor and the tasks' rewards (MuJoCo) are imported where a leaf runs: building a tree or
+# listing its node types needs no MuJoCo.
 
 
 def _role(cls: type, access: Access) -> str:
@@ -47,6 +51,8 @@ class OpenLoopBehaviour(SimulationBehaviour):
     demo: ClassVar[str] = ""
 
     def setup(self, **kwargs) -> None:
+        from besman.sim.open_loop_executor import OpenLoopExecutor
+
         super().setup(**kwargs)
         if not isinstance(self.executor, OpenLoopExecutor):
             raise InputError(
@@ -117,6 +123,8 @@ class OpenLoopAim(TemplateAim, OpenLoopBehaviour):
         return f"{values if tau.size == 1 else f'({values})'} {self.unit}"
 
     def update(self) -> Status:
+        from besman.sim.open_loop import SUCCESS
+
         rollouts = self.executor.rollouts
         tau = np.asarray(self.blackboard.get(self.tau_role), dtype=float).reshape(-1)
         aimed = self.aim(

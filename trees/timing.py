@@ -11,15 +11,17 @@ Timeout use the wall clock, which means nothing to a simulation that runs faster
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import py_trees
 from py_trees.common import Status
 
 from besman.core.errors import InputError
 from besman.core.validation import checked, text
-from besman.sim.executor import Executor
 from besman.trees.base import BEHAVIOUR, SimulationBehaviour, executor_of
+
+if TYPE_CHECKING:
+    from besman.sim.executor import Executor
 
 
 class Deadline:

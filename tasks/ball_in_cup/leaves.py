@@ -21,13 +21,15 @@ under the entry-point group ``besman.node_types`` in besman's own ``pyproject.to
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 from py_trees.common import Access
 
-from besman.sim.open_loop_executor import OpenLoopMotion
 from besman.trees.open_loop import OpenLoopAim, OpenLoopRun
+
+if TYPE_CHECKING:
+    from besman.sim.open_loop_executor import OpenLoopMotion
 
 
 class AimSwing(OpenLoopAim):

@@ -1,9 +1,9 @@
 """Pick and place as a scripted episode with numbers to tune: the task's batched evaluate for policy search.
 
-theta tunes the plan (:class:`~besman.sim.manipulation.PickPlacePlan`: heights, clearances), tau is the
+theta tunes the plan (:class:`~besman.sim.plans.PickPlacePlan`: heights, clearances), tau is the
 task's (:class:`~besman.tasks.pick_place.PickPlace`: object and place positions and yaws, shape, size; the
 object's mass and friction the middles of their ranges). An episode runs the pick-and-place sequence
-(:data:`~besman.sim.manipulation.PICK_STEPS` and ``PLACE_STEPS``) of joint-space movement primitives planned
+(:data:`~besman.sim.plans.PICK_STEPS` and ``PLACE_STEPS``) of joint-space movement primitives planned
 by :mod:`besman.sim.manipulation` and executed by the Ruckig executor: open the gripper, reach above the
 object, descend, close (a grasp is required), lift, carry above the place, set down, release, retreat;
 ``default_theta()`` is the hand-made plan. It is judged by the task's rule
@@ -24,17 +24,11 @@ from besman.robots.catalogue import ROBOT
 from besman.sim.block_simulation import OBJECT, step_motion
 from besman.sim.evaluation import BatchedRollouts, Evaluation
 from besman.sim.executor import Executor, limit_violations
-from besman.sim.manipulation import (
-    PICK_STEPS,
-    PLACE_STEPS,
-    PickPlacePlan,
-    PlanningError,
-    plan_pick,
-    plan_place,
-)
+from besman.sim.manipulation import PlanningError, plan_pick, plan_place
 from besman.sim.motions import MotionStatus
 from besman.sim.objects import GraspableObject
 from besman.sim.outcomes import lifted, placement
+from besman.sim.plans import PICK_STEPS, PLACE_STEPS, PickPlacePlan
 from besman.sim.world import World
 
 FAILURE_REWARD = -1.0

@@ -19,7 +19,8 @@ from collections.abc import Iterator
 import numpy as np
 
 from besman.sim.arm import Arm
-from besman.sim.manipulation import DEFAULT_PLAN, heights
+from besman.sim.manipulation import heights
+from besman.sim.plans import DEFAULT_PLAN
 from besman.sim.primitives import top_down
 from besman.sim.world import World, tabletop_world
 from besman.tasks.pick_place.scene import areas, the_object

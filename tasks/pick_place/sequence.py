@@ -32,7 +32,11 @@ from besman.learning.pipeline.refinement import forcing_weights
 from besman.sim.block_simulation import BLOCKS, OBJECT, BlockOutcome, Reward, motion_measures, step_motion
 from besman.sim.evaluation import BatchedRollouts, Evaluation
 from besman.sim.executor import Executor
-from besman.sim.manipulation import (
+from besman.sim.manipulation import PlanningError, plan_pick, plan_place
+from besman.sim.motions import FollowPrimitive, MotionStatus
+from besman.sim.objects import yaw_of
+from besman.sim.outcomes import lifted, placement
+from besman.sim.plans import (
     DEFAULT_PLAN,
     GRASP_SUBGOALS,
     PICK_STEPS,
@@ -40,13 +44,7 @@ from besman.sim.manipulation import (
     PLACE_SUBGOALS,
     PLAN_RANGES,
     PickPlacePlan,
-    PlanningError,
-    plan_pick,
-    plan_place,
 )
-from besman.sim.motions import FollowPrimitive, MotionStatus
-from besman.sim.objects import yaw_of
-from besman.sim.outcomes import lifted, placement
 from besman.sim.primitives import shaped
 from besman.sim.world import World
 from besman.skills import MovementPrimitive

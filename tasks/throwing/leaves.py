@@ -21,20 +21,24 @@ the entry-point group ``besman.node_types`` in besman's own ``pyproject.toml``).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from py_trees.common import Access, Status
 
 from besman.core.errors import InputError
-from besman.sim.motions import MotionStatus
-from besman.tasks.throwing.executor import ThrowingExecutor
+from besman.sim.motion_status import MotionStatus
 from besman.trees.aim import TemplateAim
 from besman.trees.base import SimulationBehaviour
 from besman.trees.manipulation import TEMPLATE_PARAMETERS
 
+if TYPE_CHECKING:
+    from besman.tasks.throwing.executor import ThrowingExecutor
+
 
 def _throwing(name: str, executor) -> ThrowingExecutor:
+    from besman.tasks.throwing.executor import ThrowingExecutor  # to run: listing the leaves needs no MuJoCo
+
     if not isinstance(executor, ThrowingExecutor):
         raise InputError(f"{name}: throwing needs the PA-10's throwing executor (besman demo throwing)")
     return executor
