@@ -21,6 +21,11 @@ from besman.core.validation import checked, finite_array, instance, items, optio
 from besman.sim.streaming import ACCELERATION_SHARE, VELOCITY_SHARE
 from besman.sim.world import World
 
+# Planning asks inverse kinematics the same question again and again (a pick's candidate legs share their
+# poses; a placement is planned to check a grasp, then to run it): half the solves of a stack episode. The
+# solver is deterministic (its restarts seeded), so an arm keeps its last answers, this many.
+IK_ANSWERS_KEPT = 4096
+
 
 @dataclass(frozen=True)
 class Contact:
@@ -74,6 +79,7 @@ class Arm:
         model = world.model
         self._site_id = robots.kinematics.site_id(model, self.site)
         self._scratch = mujoco.MjData(model)
+        self._solved: dict[tuple, robots.IKResult] = {}  # solve_ik's answers, by question
         root = model.body_rootid[model.jnt_bodyid[model.joint(self.joints[0]).id]]
         self._robot_body = model.body_rootid == root  # per body: part of the robot
         # The geoms the arm's joints move, and the furniture (the world body's own geoms), that collide.
@@ -147,20 +153,37 @@ class Arm:
         tolerances: tuple[float, float] = (1e-4, 1e-3),
     ) -> robots.IKResult:
         """Inverse kinematics of the site over the arm's joints started from ``initial``, the heavy slow
-        joints taking a small share (weights = acceleration limits)."""
-        return robots.solve_ik(
-            self.world.robot,
-            self.groups,
-            position,
-            orientation,
-            site=self.site,
-            initial_qpos=self.full_qpos(initial),
-            restarts=restarts,
-            position_tolerance=tolerances[0],
-            orientation_tolerance=tolerances[1],
-            joint_weights=self.max_acceleration,
-            data=self._scratch,
+        joints taking a small share (weights = acceleration limits). The answer is the solver's, kept: the
+        same question asked again (of the same target, from the same configuration of the whole world)
+        gets the same result, its ``qpos`` read-only."""
+        initial_qpos = self.full_qpos(initial)
+        question = (
+            np.asarray(position, dtype=float).tobytes(),
+            None if orientation is None else np.asarray(orientation, dtype=float).tobytes(),
+            initial_qpos.tobytes(),
+            restarts,
+            tolerances,
         )
+        answer = self._solved.get(question)
+        if answer is None:
+            answer = robots.solve_ik(
+                self.world.robot,
+                self.groups,
+                position,
+                orientation,
+                site=self.site,
+                initial_qpos=initial_qpos,
+                restarts=restarts,
+                position_tolerance=tolerances[0],
+                orientation_tolerance=tolerances[1],
+                joint_weights=self.max_acceleration,
+                data=self._scratch,
+            )
+            answer.qpos.flags.writeable = False  # shared by every caller that asks this again
+            if len(self._solved) >= IK_ANSWERS_KEPT:
+                del self._solved[next(iter(self._solved))]  # the oldest
+            self._solved[question] = answer
+        return answer
 
     # -- collisions ----------------------------------------------------------------------------------------
 

@@ -43,6 +43,9 @@ from besman.trees.runner import Runner, RunResult
 from besman.trees.watching import Watch
 
 NO_BREAKPOINT = "(none)"
+# s a closing session waits for its run to stop at a tick (a planning tick takes about 1 s) and for the
+# viewer's server to stop.
+CLOSING_SECONDS = 5.0
 # What the viewer draws of a model (meshes; inertia boxes): a run whose model differs in these (an object's
 # shape or size) has the viewer's scene rebuilt.
 GEOMETRY = (
@@ -90,7 +93,10 @@ class Session:
         self._running = False  # the run may tick
         self._steps = 0  # ticks left before pausing (-1: no limit)
         self._abandon = False
-        self._thread: threading.Thread | None = None
+        # Set when the run's thread has ended (None: no run started). Not Thread.join and is_alive: a Ctrl-C
+        # that interrupts a join marks the thread as ended while it runs on (CPython gh-90882, Python 3.11),
+        # and the session then closed the viewer under the running tree, or hung.
+        self._ended: threading.Event | None = None
         self._watch: Watch | None = None  # made by the first tick of each run
         self._breakpoint_hit = False
         self._log = None  # the log of the next run (the first run's, from the command line)
@@ -137,8 +143,8 @@ class Session:
         self._log = log
         self.run()
         with self._lock:
-            thread = self._thread
-        thread.join()
+            ended = self._ended
+        ended.wait()
         if self.error is not None:
             raise self.error
         return self.result
@@ -154,13 +160,9 @@ class Session:
 
     def reset(self) -> None:
         """Abandons the current run and sets up a new one with the current task values."""
+        self._abandon_run()
         with self._lock:
-            self._abandon, self._running = True, False
-            self._lock.notify_all()
-        if self._thread is not None:
-            self._thread.join()
-        with self._lock:
-            self._abandon, self._thread, self.result = False, None, None
+            self._abandon, self._ended, self.result = False, None, None
         self.runner = self._new_runner(self._prepare(self.values))
         self._show_initial()
 
@@ -171,7 +173,7 @@ class Session:
     @property
     def paused(self) -> bool:
         with self._lock:
-            return self._thread is not None and self._thread.is_alive() and not self._running
+            return self._ended is not None and not self._ended.is_set() and not self._running
 
     def set_value(self, name: str, numbers) -> None:
         """Sets the task value ``name`` for the next run: its numbers, a choice's name (``"cylinder"``), or
@@ -200,10 +202,23 @@ class Session:
         return self.prepared.judge(result)
 
     def close(self) -> None:
-        self.reset()
-        self.viewer.close()
+        """Ends the session (Ctrl-C, the end of the command): the run abandoned, the viewer stopped, each
+        waited for at most :data:`CLOSING_SECONDS` - the command ends then, whatever a thread still does."""
+        self._abandon_run(CLOSING_SECONDS)
+        stopping = threading.Thread(target=self.viewer.close, daemon=True)
+        stopping.start()
+        stopping.join(CLOSING_SECONDS)
 
     # -- internals -----------------------------------------------------------------------------------------
+
+    def _abandon_run(self, seconds: float | None = None) -> None:
+        """Stops the run's thread at its next tick and waits for it (at most ``seconds``)."""
+        with self._lock:
+            self._abandon, self._running = True, False
+            self._lock.notify_all()
+            ended = self._ended
+        if ended is not None:
+            ended.wait(seconds)
 
     def _prepare(self, values: dict) -> TaskRun:
         return prepare(self.task, self.tree, robot=self.robot, seed=self.seed, values=values, **self._options)
@@ -217,17 +232,17 @@ class Session:
 
     def _go(self, steps: int) -> None:
         with self._lock:
-            finished = self._thread is not None and not self._thread.is_alive()
+            finished = self._ended is not None and self._ended.is_set()
         if finished or self._made_with != self.values:  # a new run after the last, or for moved task values
             self.reset()
         with self._lock:
             self._steps, self._running = steps, True
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._run, daemon=True)
-                self._thread.start()
+            if self._ended is None:
+                self._ended = threading.Event()
+                threading.Thread(target=self._run, args=(self._ended,), daemon=True).start()
             self._lock.notify_all()
 
-    def _run(self) -> None:
+    def _run(self, ended: threading.Event) -> None:
         log, self._log, self.error = self._log, None, None
         try:
             self.result = self.runner.run(log=log)
@@ -237,6 +252,8 @@ class Session:
         except Exception as error:  # shown in the page, and raised again by start()
             self.error = error
             self.state.content = f"error: {error}"
+        finally:
+            ended.set()
 
     def _observe(self, runner: Runner, record: dict) -> None:
         if self._watch is None:

@@ -562,3 +562,23 @@ def test_a_throwing_template_shows_its_spread_and_where_the_ball_lands():
             view.throw((0.0, 0.0))
     finally:
         view.close()
+
+
+def test_a_ctrl_c_while_a_session_runs_stops_its_run_before_its_viewer(recwarn):
+    """Ctrl-C while ``Session.start`` waits for the run (``besman demo --view``): closing the session stops
+    the run's thread, then the viewer, so nothing is sent to a stopped viewer and no thread runs the tree on.
+    Python 3.11 marks a thread whose join a Ctrl-C interrupted as ended while it runs on (CPython gh-90882):
+    a session that waited with join closed the viewer under the running tree."""
+    from besman.tasks.session import Session
+
+    session = Session(grasp_then_place(), task="pick-place", viewer_options={"port": 0})
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a command (not xdist's)
+    try:
+        threading.Timer(1.0, signal.pthread_kill, (threading.main_thread().ident, signal.SIGINT)).start()
+        with pytest.raises(KeyboardInterrupt):
+            session.start()  # a run of about 10 s of simulation, at real time
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        session.close()
+    assert [thread for thread in threading.enumerate() if thread.name.endswith("(_run)")] == []
+    assert [str(warning.message) for warning in recwarn if "closed connection" in str(warning.message)] == []
