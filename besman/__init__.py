@@ -54,6 +54,9 @@ def _end_before_teardown(code: int) -> None:
 
     threading._shutdown()  # what the interpreter's finalisation does first: join the non-daemon threads
     atexit._run_exitfuncs()
-    sys.stdout.flush()
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:  # the reader stopped before the output's last block (besman tree nodes | head)
+        code = code or 141  # as besman.cli.main says it
     sys.stderr.flush()
     os._exit(code)

@@ -60,6 +60,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not interrupted(error):
             raise
         return stopped(_kept(args, started))
+    except BrokenPipeError:  # the reader stopped reading (besman tree nodes | head): the rest is not wanted
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # what is left to flush goes nowhere
+        return 141  # 128 + SIGPIPE, what a shell reports of a command a closed pipe ended
     except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)

@@ -1,6 +1,7 @@
 """The `besman` command line."""
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -152,3 +153,18 @@ def test_a_run_in_a_terminal_shows_its_progress_and_wipes_it_and_a_pipe_gets_non
     assert shown.endswith(CLEAR_LINE.encode()), shown[-200:]
     piped = subprocess.run(argv, capture_output=True, text=True, cwd=tmp_path)
     assert piped.returncode == 0 and piped.stderr == "", piped.stderr
+
+
+@pytest.mark.parametrize("unbuffered", ["1", ""])
+def test_output_piped_to_a_reader_that_stops_early_ends_quietly(unbuffered):
+    """``besman tree nodes | head -1``: the reader closes the pipe; the command ends as a closed pipe ends
+    any command (exit 141, 128 + SIGPIPE) and says nothing (no "Broken pipe" error, no traceback), whether
+    its output is written as it goes (PYTHONUNBUFFERED) or at its end."""
+    script = Path(sys.executable).parent / "besman"
+    environment = {**os.environ, "PYTHONUNBUFFERED": unbuffered}
+    process = subprocess.Popen(
+        [str(script), "tree", "nodes"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=environment
+    )
+    process.stdout.close()  # before the command writes: every write finds the pipe closed
+    assert process.wait(timeout=60) == 141
+    assert process.stderr.read() == b""

@@ -37,6 +37,7 @@ print(code, sorted({{name.partition(".")[0] for name in sys.modules}} & set({HEA
         ("tree nodes", []),
         ("tree nodes Throw", []),
         ("tree show examples/trees/ball_in_cup.yaml", []),
+        ("tree show examples/trees/stack_learned.yaml", []),
     ],
 )
 def test_a_listing_command_imports_only_what_it_needs(command, needs):

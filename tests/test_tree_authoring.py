@@ -104,6 +104,23 @@ def test_every_example_file_validates_against_the_schema_and_passes_check(path, 
     assert code == 0 and out == f"{path}: ok\n"
 
 
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+def test_every_example_file_is_shown_and_rendered(path, tmp_path, capsys):
+    """A learned tree's pools name ``{robot}``: shown for the robot of its task unless --robot says."""
+    code, out, err = run_cli(capsys, "tree", "show", str(path))
+    assert code == 0 and err == "" and len(out.splitlines()) > 2, err
+    code, out, err = run_cli(capsys, "tree", "render", str(path), "--out", str(tmp_path / "tree.dot"))
+    assert code == 0 and (tmp_path / "tree.dot").read_text().startswith("digraph"), err
+
+
+def test_a_learned_tree_is_shown_for_the_robot_asked_and_refused_for_one_without_its_pool(capsys):
+    tree = str(ROOT / "examples" / "trees" / "stack_learned.yaml")
+    code, out, err = run_cli(capsys, "tree", "show", tree, "--robot", "ur5e")
+    assert code == 0 and "put the box on the stack" in out, err
+    code, _, err = run_cli(capsys, "tree", "show", tree, "--robot", "pa10")
+    assert code == 2 and "no pool directory" in err and "pick_place_pa10" in err
+
+
 @pytest.mark.parametrize("reason", BAD_FILES)
 def test_the_schema_refuses_what_the_loader_refuses(reason, validator):
     text = BAD_FILES[reason]

@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 from collections.abc import Sequence
+from pathlib import Path
 
 from besman.commands.datasets import check_dataset, dataset_options
 from besman.commands.options import SEED
@@ -13,12 +14,28 @@ from besman.commands.viewing import check_view, run_task, serve, view_options
 from besman.core.errors import InputError
 
 
+def _drawn_tree(args: argparse.Namespace):
+    """The tree of ``args.file`` as ``tree show`` and ``tree render`` draw it: built for ``--robot`` (default:
+    the robot of the task the file names), whose pools the paths with ``{robot}`` name, or with ``--pool``."""
+    from besman.trees import load_tree
+    from besman.trees.files import tree_task
+
+    robot = args.robot
+    if robot is not None:
+        import besman.robots as robots
+
+        robot = robots.describe(robot).name  # a name, or a robot folder's
+    elif Path(args.file).is_file() and (named := tree_task(args.file)) is not None:
+        from besman.tasks import task
+
+        robot = task(named).robot
+    return load_tree(args.file, pool=args.pool, allow_modules=args.allow_module, robot=robot)
+
+
 def _tree_show(args: argparse.Namespace) -> int:
     import py_trees
 
-    from besman.trees import load_tree
-
-    print(py_trees.display.unicode_tree(load_tree(args.file, allow_modules=args.allow_module)))
+    print(py_trees.display.unicode_tree(_drawn_tree(args)))
     return 0
 
 
@@ -26,11 +43,10 @@ def _tree_render(args: argparse.Namespace) -> int:
     import py_trees
 
     from besman.core.storage import check_output, write_atomically
-    from besman.trees import load_tree
 
     formats = {".svg": "svg", ".png": "png", ".dot": None}  # .dot: the DOT source itself, no Graphviz
     out = check_output(args.out, option="--out", suffixes=tuple(formats), inputs=(args.file,))
-    graph = py_trees.display.dot_tree(load_tree(args.file, allow_modules=args.allow_module))
+    graph = py_trees.display.dot_tree(_drawn_tree(args))
     kind = formats[out.suffix.lower()]
     if kind is None:
         data = graph.to_string().encode("utf-8")
@@ -226,6 +242,17 @@ def _allow_module_option(command: argparse.ArgumentParser) -> None:
     )
 
 
+def _drawn_options(command: argparse.ArgumentParser) -> None:
+    """The options of the commands that draw a tree (:func:`_drawn_tree`)."""
+    command.add_argument(
+        "--robot", default=None, help="build it for this robot (its pools; default: the task's robot)"
+    )
+    command.add_argument(
+        "--pool", default=None, help="a skill template pool that replaces the pools the tree names"
+    )
+    _allow_module_option(command)
+
+
 def _set_option(command: argparse.ArgumentParser) -> None:
     command.add_argument(
         "--set",
@@ -244,12 +271,12 @@ def register(commands) -> None:
     tree_commands = tree.add_subparsers(dest="tree_command", metavar="ACTION", required=True)
     tree_show = tree_commands.add_parser("show", help="print the tree")
     tree_show.add_argument("file")
-    _allow_module_option(tree_show)
+    _drawn_options(tree_show)
     tree_show.set_defaults(handler=_tree_show)
     tree_render = tree_commands.add_parser("render", help="draw the tree with Graphviz")
     tree_render.add_argument("file")
     tree_render.add_argument("--out", required=True, help="output .svg, .png or .dot")
-    _allow_module_option(tree_render)
+    _drawn_options(tree_render)
     tree_render.set_defaults(handler=_tree_render)
     tree_nodes = tree_commands.add_parser("nodes", help="the node types of tree files and their parameters")
     tree_nodes.add_argument("name", nargs="?", help="one node type, with its parameters and blackboard roles")
