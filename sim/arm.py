@@ -11,7 +11,7 @@ touches the simulation.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -153,9 +153,9 @@ class Arm:
         tolerances: tuple[float, float] = (1e-4, 1e-3),
     ) -> robots.IKResult:
         """Inverse kinematics of the site over the arm's joints started from ``initial``, the heavy slow
-        joints taking a small share (weights = acceleration limits). The answer is the solver's, kept: the
-        same question asked again (of the same target, from the same configuration of the whole world)
-        gets the same result, its ``qpos`` read-only."""
+        joints taking a small share (weights = acceleration limits). The solver's answer is kept: the same
+        question asked again (the same target, from the same configuration of the whole world) gets it
+        again, with its own copy of ``qpos``."""
         initial_qpos = self.full_qpos(initial)
         question = (
             np.asarray(position, dtype=float).tobytes(),
@@ -179,11 +179,10 @@ class Arm:
                 joint_weights=self.max_acceleration,
                 data=self._scratch,
             )
-            answer.qpos.flags.writeable = False  # shared by every caller that asks this again
             if len(self._solved) >= IK_ANSWERS_KEPT:
                 del self._solved[next(iter(self._solved))]  # the oldest
             self._solved[question] = answer
-        return answer
+        return replace(answer, qpos=answer.qpos.copy())  # a caller may change its configuration in place
 
     # -- collisions ----------------------------------------------------------------------------------------
 
