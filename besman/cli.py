@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import select
 import sys
 import time
 import warnings
@@ -60,13 +61,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not interrupted(error):
             raise
         return stopped(_kept(args, started))
-    except BrokenPipeError:  # the reader stopped reading (besman tree nodes | head): the rest is not wanted
+    except BrokenPipeError as error:
+        if not _reader_gone():  # a pipe of the command's own (a worker's, a socket): a failure to report
+            print(f"besman: error: {error}", file=sys.stderr)
+            return 2
+        # The reader of the output stopped reading (besman tree nodes | head): the rest is not wanted.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # what is left to flush goes nowhere
         return 141  # 128 + SIGPIPE, what a shell reports of a command a closed pipe ended
     except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)
         return 2
+
+
+def _reader_gone() -> bool:
+    """Whether standard output is a pipe whose reader has closed it (poll reports an error on its end)."""
+    try:
+        descriptor = sys.stdout.fileno()
+    except (OSError, ValueError):  # not a file (output captured in the process)
+        return False
+    poller = select.poll()
+    poller.register(descriptor, select.POLLOUT)
+    return any(events & select.POLLERR for _, events in poller.poll(0))
 
 
 # Spellings of the previous release that keep working for this one, with a warning: (command, old) -> new;

@@ -87,6 +87,18 @@ MOVED_NAMES = {
         "throwing_world": "besman.tasks.throwing.world:throwing_world",
     },
     "besman.sim.world": {"throwing_world": "besman.tasks.throwing.world:throwing_world"},
+    "besman.sim.manipulation": {
+        name: f"besman.sim.plans:{name}"
+        for name in (
+            "DEFAULT_PLAN",
+            "PLAN_RANGES",
+            "GRASP_SUBGOALS",
+            "PLACE_SUBGOALS",
+            "Step",
+            "PICK_STEPS",
+            "PLACE_STEPS",
+        )
+    },
     "besman.sim.evaluation": {"BatchedTask": "besman.sim.evaluation:BatchedRollouts"},
     "besman.trees": {
         "AimThrow": "besman.tasks.throwing.leaves:AimThrow",

@@ -8,7 +8,8 @@
   (:mod:`besman.sim.streaming`), with grasp sensing (:mod:`besman.sim.hand`) and fault checks
   (:mod:`besman.sim.faults`); :mod:`besman.sim.references` turns primitives into joint references.
 - :mod:`besman.sim.primitives`, :mod:`besman.sim.manipulation` - movement primitives from goals; pick and
-  place planning.
+  place planning (:mod:`besman.sim.plans`: a plan's numbers, steps and targets, and
+  :mod:`besman.sim.motion_status`: where a motion stands, without MuJoCo).
 - :mod:`besman.sim.evaluation` - candidates evaluated in batches (local cores or Ray); the tasks' batched
   rollouts themselves are in :mod:`besman.tasks`.
 - :mod:`besman.sim.viewer` - the browser viewer (viser, mjviser): the world posed from the simulation and a
@@ -24,7 +25,7 @@ _HOMES = {
     "besman.skills.task_bounds": ("TaskBounds",),
     "evaluation": ("Evaluation",),
     "executor": ("Executor", "ExecutorConfig"),
-    "motions": ("MotionStatus",),
+    "motion_status": ("MotionStatus",),
     "world": ("World", "tabletop_world"),
 }
 

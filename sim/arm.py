@@ -157,14 +157,17 @@ class Arm:
         question asked again (the same target, from the same configuration of the whole world) gets it
         again, with its own copy of ``qpos``."""
         initial_qpos = self.full_qpos(initial)
-        question = (
-            np.asarray(position, dtype=float).tobytes(),
-            None if orientation is None else np.asarray(orientation, dtype=float).tobytes(),
-            initial_qpos.tobytes(),
-            restarts,
-            tolerances,
-        )
-        answer = self._solved.get(question)
+        try:
+            question = (
+                np.asarray(position, dtype=float).tobytes(),
+                None if orientation is None else np.asarray(orientation, dtype=float).tobytes(),
+                initial_qpos.tobytes(),
+                restarts,
+                tuple(tolerances),
+            )
+        except (TypeError, ValueError):  # not numbers: the solver's own check says which (it raises)
+            question = None
+        answer = None if question is None else self._solved.get(question)
         if answer is None:
             answer = robots.solve_ik(
                 self.world.robot,
@@ -179,9 +182,10 @@ class Arm:
                 joint_weights=self.max_acceleration,
                 data=self._scratch,
             )
-            if len(self._solved) >= IK_ANSWERS_KEPT:
-                del self._solved[next(iter(self._solved))]  # the oldest
-            self._solved[question] = answer
+            if question is not None:
+                if len(self._solved) >= IK_ANSWERS_KEPT:
+                    del self._solved[next(iter(self._solved))]  # the oldest
+                self._solved[question] = answer
         return replace(answer, qpos=answer.qpos.copy())  # a caller may change its configuration in place
 
     # -- collisions ----------------------------------------------------------------------------------------

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from besman.core.errors import InputError
+from besman.core.moved import old_names
 from besman.core.validation import finite_array
 from besman.sim.arm import Arm
 from besman.sim.legs import Leg, hand_yaw, plan_leg, pose_configurations, site_path
@@ -435,3 +436,6 @@ def plan_move(
     if hit:
         raise PlanningError(f"the hand at {np.round(goal_position, 3).tolist()} would collide: {hit[0]}")
     return point_to_point("move", start, result.qpos, arm, duration)
+
+
+__getattr__ = old_names(__name__)  # the old names, for one release (besman.core.moved)

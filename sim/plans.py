@@ -70,7 +70,8 @@ class Step:
 
     Attributes:
         name: the step's name (motions, tree leaves and logs use it).
-        move: the planned primitive it follows (a field of :class:`PickMotions` or :class:`PlaceMotions`), or
+        move: the planned primitive it follows (a field of :class:`~besman.sim.manipulation.PickMotions` or
+            :class:`~besman.sim.manipulation.PlaceMotions`), or
         gripper: what it does with the gripper instead: "open", "close" (a grasp of the object is required)
             or "release".
         holding: the object is in the hand when it starts and must stay there (a slip fails it; trees guard

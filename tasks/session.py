@@ -43,8 +43,8 @@ from besman.trees.runner import Runner, RunResult
 from besman.trees.watching import Watch
 
 NO_BREAKPOINT = "(none)"
-# s a closing session waits for its run to stop at a tick (a planning tick takes about 1 s) and for the
-# viewer's server to stop.
+# s a closing session waits for the viewer's server to stop (its run it waits for: the run's log is closed
+# as the run stops, at the end of its tick).
 CLOSING_SECONDS = 5.0
 # What the viewer draws of a model (meshes; inertia boxes): a run whose model differs in these (an object's
 # shape or size) has the viewer's scene rebuilt.
@@ -93,6 +93,7 @@ class Session:
         self._running = False  # the run may tick
         self._steps = 0  # ticks left before pausing (-1: no limit)
         self._abandon = False
+        self._closed = False  # close() was called: the page's buttons start nothing
         # Set when the run's thread has ended (None: no run started). Not Thread.join and is_alive: a Ctrl-C
         # that interrupts a join marks the thread as ended while it runs on (CPython gh-90882, Python 3.11),
         # and the session then closed the viewer under the running tree, or hung.
@@ -139,12 +140,18 @@ class Session:
 
     def start(self, log=None) -> RunResult:
         """Runs the set-up run to its end, writing ``log`` if given, and returns its result (the browser's
-        controls work meanwhile: a pause holds this call)."""
+        controls work meanwhile: a pause holds this call; after the page's Reset, the run its Run starts
+        next is the one waited for)."""
         self._log = log
-        self.run()
-        with self._lock:
-            ended = self._ended
-        ended.wait()
+        ended = self._go(-1)
+        while True:
+            ended.wait()
+            with self._lock:
+                if self.result is not None or self.error is not None:
+                    break
+                while self._ended in (None, ended):  # reset: until the page starts the next run
+                    self._lock.wait()
+                ended = self._ended
         if self.error is not None:
             raise self.error
         return self.result
@@ -159,7 +166,11 @@ class Session:
             self._lock.notify_all()
 
     def reset(self) -> None:
-        """Abandons the current run and sets up a new one with the current task values."""
+        """Abandons the current run and sets up a new one with the current task values (nothing once the
+        session is closed)."""
+        with self._lock:
+            if self._closed:
+                return
         self._abandon_run()
         with self._lock:
             self._abandon, self._ended, self.result = False, None, None
@@ -202,23 +213,26 @@ class Session:
         return self.prepared.judge(result)
 
     def close(self) -> None:
-        """Ends the session (Ctrl-C, the end of the command): the run abandoned, the viewer stopped, each
-        waited for at most :data:`CLOSING_SECONDS` - the command ends then, whatever a thread still does."""
-        self._abandon_run(CLOSING_SECONDS)
+        """Ends the session (Ctrl-C, the end of the command): the run stopped at its next tick (its log, if
+        it writes one, closed), then the viewer, waited for at most :data:`CLOSING_SECONDS` - the command
+        ends then, whatever the server's threads still do. The page's buttons start nothing after."""
+        with self._lock:
+            self._closed = True
+        self._abandon_run()
         stopping = threading.Thread(target=self.viewer.close, daemon=True)
         stopping.start()
         stopping.join(CLOSING_SECONDS)
 
     # -- internals -----------------------------------------------------------------------------------------
 
-    def _abandon_run(self, seconds: float | None = None) -> None:
-        """Stops the run's thread at its next tick and waits for it (at most ``seconds``)."""
+    def _abandon_run(self) -> None:
+        """Stops the run's thread at its next tick and waits for it."""
         with self._lock:
             self._abandon, self._running = True, False
             self._lock.notify_all()
             ended = self._ended
         if ended is not None:
-            ended.wait(seconds)
+            ended.wait()
 
     def _prepare(self, values: dict) -> TaskRun:
         return prepare(self.task, self.tree, robot=self.robot, seed=self.seed, values=values, **self._options)
@@ -230,8 +244,12 @@ class Session:
         runner.observe = observers(runner.observe, self._observe)  # the task's own observer first
         return runner
 
-    def _go(self, steps: int) -> None:
+    def _go(self, steps: int) -> threading.Event | None:
+        """Runs ``steps`` ticks (-1: to the end), in a new run where the last has ended or the task values
+        changed; the run's event, set when its thread ends (None once the session is closed)."""
         with self._lock:
+            if self._closed:
+                return None
             finished = self._ended is not None and self._ended.is_set()
         if finished or self._made_with != self.values:  # a new run after the last, or for moved task values
             self.reset()
@@ -241,6 +259,7 @@ class Session:
                 self._ended = threading.Event()
                 threading.Thread(target=self._run, args=(self._ended,), daemon=True).start()
             self._lock.notify_all()
+            return self._ended
 
     def _run(self, ended: threading.Event) -> None:
         log, self._log, self.error = self._log, None, None

@@ -580,5 +580,23 @@ def test_a_ctrl_c_while_a_session_runs_stops_its_run_before_its_viewer(recwarn):
     finally:
         signal.signal(signal.SIGINT, previous)
         session.close()
-    assert [thread for thread in threading.enumerate() if thread.name.endswith("(_run)")] == []
+    running = lambda: any(thread.name.endswith("(_run)") for thread in threading.enumerate())  # noqa: E731
+    assert wait_until(lambda: not running(), 1.0)  # the run's thread sets its event, then ends
     assert [str(warning.message) for warning in recwarn if "closed connection" in str(warning.message)] == []
+    session.run()  # the page's Run after the close starts nothing
+    assert not running()
+
+
+def test_a_reset_from_the_page_during_the_commands_run_makes_it_wait_for_the_next_run():
+    """``besman demo --view``: the page's Reset while the command waits for its run abandons that run; the
+    command then waits for the run the page's Run starts, and reports that one."""
+    from besman.tasks.session import Session
+
+    session = Session(grasp_then_place(), task="pick-place", speed=4.0, viewer_options={"port": 0})
+    try:
+        threading.Timer(0.5, session.reset).start()
+        threading.Timer(1.5, session.run).start()
+        result = session.start()
+    finally:
+        session.close()
+    assert result.status == "SUCCESS" and result.sim_time_s > 5.0  # the whole second run, from its start

@@ -156,7 +156,7 @@ class PerceiveObject(SimulationBehaviour):
 
 class _Plan(SimulationBehaviour):
     """A planning leaf: in one tick, plans from the robot's commanded configuration and the place in its
-    ``source`` role with its ``planner``, and writes the primitives to its other roles.
+    ``source`` role (its subclass's ``_planned``), and writes the primitives to its other roles.
 
     With a ``pool`` and a ``template`` name, the big move (reach or carry) is the template's
     instance for the move planned (:class:`TemplateInstance`) - a learned primitive moved to the planned

@@ -26,9 +26,10 @@ def _drawn_tree(args: argparse.Namespace):
 
         robot = robots.describe(robot).name  # a name, or a robot folder's
     elif Path(args.file).is_file() and (named := tree_task(args.file)) is not None:
-        from besman.tasks import task
+        from besman.tasks import task, task_names
 
-        robot = task(named).robot
+        if named in task_names():  # else (a plugin's task, not installed) shown where no pool names {robot}
+            robot = task(named).robot
     return load_tree(args.file, pool=args.pool, allow_modules=args.allow_module, robot=robot)
 
 
