@@ -23,7 +23,8 @@ from besman.sim.world import World
 
 # Planning asks inverse kinematics the same question again and again (a pick's candidate legs share their
 # poses; a placement is planned to check a grasp, then to run it): half the solves of a stack episode. The
-# solver is deterministic (its restarts seeded), so an arm keeps its last answers, this many.
+# solver is deterministic (its restarts seeded), so an arm keeps its last answers, this many
+# (benchmarks/ik_answers.py: with none kept, the same outcomes and more processor time).
 IK_ANSWERS_KEPT = 4096
 
 
@@ -182,7 +183,7 @@ class Arm:
                 joint_weights=self.max_acceleration,
                 data=self._scratch,
             )
-            if question is not None:
+            if question is not None and IK_ANSWERS_KEPT > 0:
                 if len(self._solved) >= IK_ANSWERS_KEPT:
                     del self._solved[next(iter(self._solved))]  # the oldest
                 self._solved[question] = answer

@@ -149,6 +149,15 @@ def test_learned_benchmark_compares_the_three_trees_as_json():
         assert row["met"] is None if name == "promp" else row["met"] in (True, False)
 
 
+@pytest.mark.slow
+def test_ik_answers_benchmark_compares_kept_answers_with_none_and_finds_the_same_outcomes():
+    report = run_benchmark("ik_answers.py", "--task", "stack", "--episodes", "1")
+    assert report["benchmark"] == "ik_answers" and report["answers_kept"] > 0
+    assert report["same_outcomes"] is True
+    assert 0 < report["solves"]["kept"] < report["solves"]["none kept"]  # a stack asks again (a sort may not)
+    assert all(len(seconds) == 1 and seconds[0] > 0 for seconds in report["process_s"].values())
+
+
 def test_startup_benchmark_times_every_help_listing_and_first_tick_beside_a_bare_python():
     report = run_benchmark("startup.py", "--runs", "1")
     rows = report["commands"]
