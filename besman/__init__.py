@@ -13,7 +13,7 @@ import sys
 
 from besman._version import __version__
 from besman.core import moved
-from besman.stopping import ctrl_c_again, stop_after_imports, stopped
+from besman.stopping import PIPE_CLOSED, ctrl_c_again, stop_after_imports, stopped
 
 moved.install()  # the old names of modules that moved keep importing (besman.core.moved)
 
@@ -57,6 +57,6 @@ def _end_before_teardown(code: int) -> None:
     try:
         sys.stdout.flush()
     except BrokenPipeError:  # the reader stopped before the output's last block (besman tree nodes | head)
-        code = code or 141  # as besman.cli.main says it
+        code = code or PIPE_CLOSED
     sys.stderr.flush()
     os._exit(code)

@@ -18,7 +18,7 @@ from collections.abc import Iterator, Sequence
 from besman._version import __version__
 from besman.commands import datasets, examples, learning, pool, recordings, robots, tasks, trees, viewing
 from besman.core.errors import PluginWarning
-from besman.stopping import stopped
+from besman.stopping import PIPE_CLOSED, stopped
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -67,7 +67,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
         # The reader of the output stopped reading (besman tree nodes | head): the rest is not wanted.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # what is left to flush goes nowhere
-        return 141  # 128 + SIGPIPE, what a shell reports of a command a closed pipe ended
+        return PIPE_CLOSED
     except (ValueError, KeyError, RuntimeError, OSError) as error:  # TreeFileError is a ValueError
         message = error.args[0] if isinstance(error, KeyError) and error.args else error
         print(f"besman: error: {message}", file=sys.stderr)

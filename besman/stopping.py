@@ -10,6 +10,9 @@ import threading
 # Ctrl-C does, so that every clean-up of Ctrl-C runs for it too; which signal it was is kept here, not in the
 # exception (Ray's ray.get replaces any KeyboardInterrupt with a new one).
 _received: list[int] = []
+# The exit code of a command whose output's reader stopped reading (| head): 128 + SIGPIPE, what a shell
+# reports of a command a closed pipe ended.
+PIPE_CLOSED = 141
 
 
 def stopped(kept: str = "") -> int:
